@@ -1,0 +1,267 @@
+//! One simulated robot's episode: commands, PD control over the decimation substeps,
+//! reward, termination, observation and score bookkeeping.
+
+use std::f32::consts::PI;
+use std::sync::Arc;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rapier3d::math::{Rotation, Vector};
+
+use crate::preset::Preset;
+use crate::reward::{self, GridWeights, RewardInput, RewardTerms};
+use crate::robot::RobotWorld;
+use crate::score::{ScoreAccumulator, ScoreStep};
+use crate::terrain::{Tile, TILE};
+
+/// Joints of a quadruped.
+pub const NJ: usize = 12;
+
+/// The command of a robot (paper: c_t = {v_d, theta_d}).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Command {
+    /// Forward speed (m/s).
+    pub speed: f32,
+    /// Target heading (rad).
+    pub heading: f32,
+}
+
+/// Wraps an angle to [-pi, pi).
+pub fn wrap(a: f32) -> f32 {
+    (a + PI).rem_euclid(2.0 * PI) - PI
+}
+
+/// Yaw of a rotation.
+pub fn yaw_of(r: &Rotation) -> f32 {
+    let fwd = *r * Vector::X;
+    fwd.y.atan2(fwd.x)
+}
+
+/// What a step reports of one robot.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StepReport {
+    /// Total reward.
+    pub reward: f32,
+    /// The episode ended (fall or timeout).
+    pub done: bool,
+    /// It ended by time or by leaving the tile, not by a fall.
+    pub timeout: bool,
+}
+
+/// One robot and its episode state.
+pub struct Agent {
+    pub(crate) world: RobotWorld,
+    pub(crate) rng: ChaCha8Rng,
+    pub(crate) level: u8,
+    pub(crate) cmd: Command,
+    pub(crate) cmd_yaw_rate: f32,
+    origin: [f32; 2],
+    actions: [f32; NJ],
+    last_actions: [f32; NJ],
+    q: [f32; NJ],
+    qd: [f32; NJ],
+    last_qd: [f32; NJ],
+    air: [f32; 4],
+    last_contact: [bool; 4],
+    pub(crate) step_in_episode: u32,
+    last_pos: [f32; 2],
+    /// Score of the current episode.
+    pub(crate) score: ScoreAccumulator,
+    /// The last reward terms.
+    pub(crate) terms: RewardTerms,
+    /// Frozen: done in an evaluation, no more stepping.
+    pub(crate) frozen: bool,
+}
+
+impl Agent {
+    pub(crate) fn new(world: RobotWorld, seed: u64, level: u8) -> Agent {
+        Agent {
+            world,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            level,
+            cmd: Command::default(),
+            cmd_yaw_rate: 0.0,
+            origin: [0.0; 2],
+            actions: [0.0; NJ],
+            last_actions: [0.0; NJ],
+            q: [0.0; NJ],
+            qd: [0.0; NJ],
+            last_qd: [0.0; NJ],
+            air: [0.0; 4],
+            last_contact: [true; 4],
+            step_in_episode: 0,
+            last_pos: [0.0; 2],
+            score: ScoreAccumulator::default(),
+            terms: RewardTerms::default(),
+            frozen: false,
+        }
+    }
+
+    pub(crate) fn sample_command(&mut self, p: &Preset) {
+        let c = &p.commands;
+        self.cmd.speed = self.rng.random_range(c.forward_speed[0]..=c.forward_speed[1]);
+        self.cmd.heading = self.rng.random_range(c.heading[0]..=c.heading[1]);
+    }
+
+    /// Starts a new episode on `tile` (legged_gym: random yaw, small xy offset).
+    pub(crate) fn reset(&mut self, p: &Preset, tile: Arc<Tile>) {
+        if !Arc::ptr_eq(self.world.tile(), &tile) {
+            self.world.set_tile(tile);
+        }
+        let x = self.rng.random_range(-0.5..=0.5f32);
+        let y = self.rng.random_range(-0.5..=0.5f32);
+        let yaw = self.rng.random_range(-PI..PI);
+        let z = self.world.tile().height(x, y) + p.spawn_height;
+        self.world.reset(x, y, z, yaw, &p.default_pose);
+        self.origin = [x, y];
+        self.last_pos = [x, y];
+        self.actions = [0.0; NJ];
+        self.last_actions = [0.0; NJ];
+        self.world.joint_state(&mut self.q, &mut self.qd);
+        self.last_qd = self.qd;
+        self.air = [0.0; 4];
+        self.last_contact = [true; 4];
+        self.step_in_episode = 0;
+        self.score = ScoreAccumulator::default();
+        self.frozen = false;
+        self.sample_command(p);
+        self.update_yaw_command(p);
+    }
+
+    fn update_yaw_command(&mut self, p: &Preset) {
+        let yaw = yaw_of(&self.world.base().rot);
+        let c = &p.commands;
+        self.cmd_yaw_rate = (c.heading_gain * wrap(self.cmd.heading - yaw)).clamp(-c.max_yaw_rate, c.max_yaw_rate);
+    }
+
+    /// Distance walked from the episode's origin (m).
+    pub(crate) fn walked(&self) -> f32 {
+        let b = self.world.base().pos;
+        (b.x - self.origin[0]).hypot(b.y - self.origin[1])
+    }
+
+    /// Advances one policy step with `actions` (clipped to [-clip, clip]).
+    pub(crate) fn step(&mut self, p: &Preset, w: GridWeights, actions: &[f32], max_steps: u32) -> StepReport {
+        let ctl = &p.control;
+        let clip = p.observation.clip;
+        let mut targets = [0.0f32; NJ];
+        for k in 0..NJ {
+            self.actions[k] = actions[k].clamp(-clip, clip);
+            targets[k] = p.default_pose[k] + ctl.action_scale * self.actions[k];
+        }
+        let mut tau = [0.0f32; NJ];
+        let (mut torque_sq, mut torque_norm, mut abs_torque, mut power) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+        for _ in 0..ctl.decimation {
+            self.world.step(&targets, &mut self.q, &mut self.qd, &mut tau);
+            let sq: f32 = tau.iter().map(|t| t * t).sum();
+            torque_sq += sq;
+            torque_norm += sq.sqrt();
+            abs_torque += tau.iter().map(|t| t.abs()).sum::<f32>() / NJ as f32;
+            // Power of the torques at the velocities they were computed from.
+            power += tau.iter().zip(&self.qd).map(|(t, v)| (t * v).abs()).sum::<f32>();
+        }
+        let dec = ctl.decimation as f32;
+        let dt = p.policy_dt();
+        self.world.joint_state(&mut self.q, &mut self.qd);
+        let base = self.world.base();
+        let yaw = yaw_of(&base.rot);
+        let heading_rot = Rotation::from_rotation_z(-yaw);
+        let vh = heading_rot * base.linvel;
+        let ang_b = base.rot.inverse() * base.angvel;
+        let grav_b = base.rot.inverse() * Vector::new(0.0, 0.0, -1.0);
+        let mut contact = [false; 4];
+        self.world.foot_contacts(&mut contact);
+        let air_time = reward::feet_air_time(&mut self.air, &mut self.last_contact, &contact, dt, self.cmd.speed);
+        let dof_acc_sq: f32 = (0..NJ).map(|k| ((self.qd[k] - self.last_qd[k]) / dt).powi(2)).sum();
+        let action_rate_sq: f32 = (0..NJ).map(|k| (self.actions[k] - self.last_actions[k]).powi(2)).sum();
+
+        self.step_in_episode += 1;
+        let fell = self.world.base_contact() || grav_b.z > -0.3 || base.pos.z - self.world.tile().height(base.pos.x, base.pos.y) < 0.35 * p.nominal_base_height;
+        let off_tile = base.pos.x.abs().max(base.pos.y.abs()) > TILE / 2.0 - 1.0;
+        let timeout = !fell && (self.step_in_episode >= max_steps || off_tile);
+
+        let inp = RewardInput {
+            cmd_speed: self.cmd.speed,
+            cmd_yaw_rate: self.cmd_yaw_rate,
+            vel_heading: [vh.x, vh.y, vh.z],
+            angvel_base: [ang_b.x, ang_b.y, ang_b.z],
+            torque_sq: torque_sq / dec,
+            dof_acc_sq,
+            action_rate_sq,
+            air_time,
+            fell,
+        };
+        self.terms = reward::compute(&inp, w, &p.reward, dt);
+        self.score.add(
+            &ScoreStep {
+                cmd: [self.cmd.speed, 0.0],
+                vel: [vh.x, vh.y],
+                torque_norm: torque_norm / dec,
+                mean_abs_torque: abs_torque / dec,
+                power: power / dec,
+                gravity_xy: [grav_b.x, grav_b.y],
+                displacement: [base.pos.x - self.last_pos[0], base.pos.y - self.last_pos[1]],
+            },
+            p.reward.tracking_sigma,
+            ctl.torque_limit,
+            NJ,
+        );
+        self.score.fell |= fell;
+        self.last_pos = [base.pos.x, base.pos.y];
+        self.last_qd = self.qd;
+        self.last_actions = self.actions;
+
+        let resample = (p.commands.resample_seconds / dt).round().max(1.0) as u32;
+        if self.step_in_episode % resample == 0 {
+            self.sample_command(p);
+        }
+        self.update_yaw_command(p);
+        StepReport { reward: self.terms.total(), done: fell || timeout, timeout }
+    }
+
+    /// Writes the observation (legged_gym's layout) into `out`.
+    pub(crate) fn observe(&self, p: &Preset, out: &mut [f32]) {
+        let o = &p.observation;
+        let base = self.world.base();
+        let inv = base.rot.inverse();
+        let lv = inv * base.linvel;
+        let av = inv * base.angvel;
+        let g = inv * Vector::new(0.0, 0.0, -1.0);
+        let mut i = 0;
+        let mut put = |v: f32| {
+            out[i] = v.clamp(-o.clip, o.clip);
+            i += 1;
+        };
+        for v in [lv.x, lv.y, lv.z] {
+            put(v * o.lin_vel_scale);
+        }
+        for v in [av.x, av.y, av.z] {
+            put(v * o.ang_vel_scale);
+        }
+        for v in [g.x, g.y, g.z] {
+            put(v);
+        }
+        put(self.cmd.speed * o.lin_vel_scale);
+        put(0.0);
+        put(self.cmd_yaw_rate * o.ang_vel_scale);
+        for k in 0..NJ {
+            put((self.q[k] - p.default_pose[k]) * o.dof_pos_scale);
+        }
+        for k in 0..NJ {
+            put(self.qd[k] * o.dof_vel_scale);
+        }
+        for k in 0..NJ {
+            put(self.actions[k]);
+        }
+        let yaw = yaw_of(&base.rot);
+        let (s, c) = yaw.sin_cos();
+        let tile = self.world.tile();
+        for &sx in &o.scan_x {
+            for &sy in &o.scan_y {
+                let (x, y) = (base.pos.x + c * sx - s * sy, base.pos.y + s * sx + c * sy);
+                let h = tile.height(x, y);
+                put((base.pos.z - p.nominal_base_height - h).clamp(-1.0, 1.0) * o.height_scale);
+            }
+        }
+    }
+}

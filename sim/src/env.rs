@@ -1,0 +1,292 @@
+//! The vectorised environment: N robots, one rapier world each, stepped in parallel.
+
+use rayon::prelude::*;
+
+use crate::agent::{Agent, NJ};
+use crate::error::{Error, Result};
+use crate::preset::Preset;
+use crate::reward::{GridWeights, TERM_NAMES};
+use crate::robot::RobotWorld;
+use crate::score::{self, GaitScore};
+use crate::terrain::{curriculum_update, TerrainKind, TerrainSet};
+use crate::urdf::RobotModel;
+
+/// Settings of a vectorised environment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnvConfig {
+    /// Terrain kind.
+    pub terrain: TerrainKind,
+    /// Number of robots.
+    pub num_envs: usize,
+    /// Velocity tracking weight.
+    pub w1: f32,
+    /// Torque penalty exponent (weight 10^w2).
+    pub w2: f32,
+    /// Seed of spawns, commands and terrain variants.
+    pub seed: u64,
+    /// Fixed difficulty level, or `None` for legged_gym's curriculum (starting at 0).
+    pub difficulty: Option<u8>,
+    /// Episode length (s).
+    pub episode_seconds: f32,
+}
+
+/// One step's outputs, borrowed from the environment.
+#[derive(Debug)]
+pub struct StepResult<'a> {
+    /// Observations after the step (of the new episode for robots that were reset),
+    /// row-major `[N * obs_dim]`.
+    pub obs: &'a [f32],
+    /// Reward per robot.
+    pub rewards: &'a [f32],
+    /// Episode ended (fall or timeout) per robot.
+    pub dones: &'a [bool],
+    /// Episode ended by time or by leaving the tile (bootstrap the value).
+    pub timeouts: &'a [bool],
+    /// Weighted reward terms, row-major `[N * n_terms]`, in [`VecEnv::reward_term_names`] order.
+    pub terms: &'a [f32],
+}
+
+/// N robots, each in its own rapier world.
+pub struct VecEnv {
+    preset: Preset,
+    cfg: EnvConfig,
+    terrain: TerrainSet,
+    agents: Vec<Agent>,
+    weights: GridWeights,
+    max_steps: u32,
+    auto_reset: bool,
+    mass: f32,
+    obs: Vec<f32>,
+    rewards: Vec<f32>,
+    dones: Vec<bool>,
+    timeouts: Vec<bool>,
+    terms: Vec<f32>,
+    finished: Vec<crate::score::ScoreAccumulator>,
+}
+
+fn mix(seed: u64, i: u64) -> u64 {
+    // splitmix64: independent streams per robot from one seed.
+    let mut z = seed ^ i.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+impl VecEnv {
+    /// Builds `cfg.num_envs` robots of `preset` on `cfg.terrain`.
+    pub fn new(preset: &Preset, cfg: EnvConfig) -> Result<VecEnv> {
+        if cfg.num_envs == 0 {
+            return Err(Error::InvalidArgument("num_envs must be at least 1".into()));
+        }
+        if !(cfg.w1.is_finite() && cfg.w2.is_finite()) {
+            return Err(Error::InvalidArgument(format!("w1 and w2 must be finite, got {} and {}", cfg.w1, cfg.w2)));
+        }
+        if !(cfg.episode_seconds > 0.0) {
+            return Err(Error::InvalidArgument(format!("episode_seconds must be > 0, got {}", cfg.episode_seconds)));
+        }
+        let model = RobotModel::load(preset)?;
+        let terrain = TerrainSet::new(cfg.terrain);
+        let level = cfg.difficulty.unwrap_or(0);
+        let agents: Vec<Agent> = (0..cfg.num_envs)
+            .into_par_iter()
+            .map(|i| {
+                let world = RobotWorld::new(preset, &model, terrain.tile(level, i).clone());
+                Agent::new(world, mix(cfg.seed, i as u64), level)
+            })
+            .collect();
+        let n = cfg.num_envs;
+        let max_steps = (cfg.episode_seconds / preset.policy_dt()).round().max(1.0) as u32;
+        let mut env = VecEnv {
+            weights: GridWeights { w1: cfg.w1, w2: cfg.w2 },
+            max_steps,
+            auto_reset: true,
+            mass: model.total_mass,
+            obs: vec![0.0; n * preset.obs_dim()],
+            rewards: vec![0.0; n],
+            dones: vec![false; n],
+            timeouts: vec![false; n],
+            terms: vec![0.0; n * TERM_NAMES.len()],
+            finished: Vec::new(),
+            preset: preset.clone(),
+            terrain,
+            agents,
+            cfg,
+        };
+        env.reset();
+        Ok(env)
+    }
+
+    /// Number of robots.
+    pub fn num_envs(&self) -> usize {
+        self.agents.len()
+    }
+
+    /// Observation size.
+    pub fn obs_dim(&self) -> usize {
+        self.preset.obs_dim()
+    }
+
+    /// Action size (12).
+    pub fn act_dim(&self) -> usize {
+        NJ
+    }
+
+    /// Policy time step (s).
+    pub fn policy_dt(&self) -> f32 {
+        self.preset.policy_dt()
+    }
+
+    /// The preset.
+    pub fn preset(&self) -> &Preset {
+        &self.preset
+    }
+
+    /// Names of the reward terms.
+    pub fn reward_term_names(&self) -> &[&'static str] {
+        &TERM_NAMES
+    }
+
+    /// Whether done robots start a new episode (training) or freeze (evaluation).
+    pub fn set_auto_reset(&mut self, on: bool) {
+        self.auto_reset = on;
+    }
+
+    /// Resets every robot from the configured seed; returns the observations.
+    pub fn reset(&mut self) -> &[f32] {
+        self.reseed(self.cfg.seed);
+        &self.obs
+    }
+
+    /// Resets every robot from `seed` (training reseeds at checkpoint boundaries so that
+    /// resumed runs replay exactly).
+    pub fn reseed(&mut self, seed: u64) {
+        use rand::SeedableRng;
+        let (p, terrain, od) = (&self.preset, &self.terrain, self.preset.obs_dim());
+        self.agents.par_iter_mut().zip(self.obs.par_chunks_mut(od)).enumerate().for_each(|(i, (a, o))| {
+            a.rng = rand_chacha::ChaCha8Rng::seed_from_u64(mix(seed, i as u64));
+            a.reset(p, terrain.tile(a.level, i).clone());
+            a.observe(p, o);
+        });
+        self.finished.clear();
+    }
+
+    /// Current observations.
+    pub fn observations(&self) -> &[f32] {
+        &self.obs
+    }
+
+    /// Difficulty level per robot.
+    pub fn levels(&self) -> Vec<u8> {
+        self.agents.iter().map(|a| a.level).collect()
+    }
+
+    /// Advances every robot one policy step with `actions` (`[N * 12]`, row-major).
+    pub fn step(&mut self, actions: &[f32]) -> Result<StepResult<'_>> {
+        let n = self.agents.len();
+        if actions.len() != n * NJ {
+            return Err(Error::InvalidArgument(format!("expected {} actions ({} robots x {NJ}), got {}", n * NJ, n, actions.len())));
+        }
+        let (p, terrain, w, max_steps, auto_reset, curriculum) =
+            (&self.preset, &self.terrain, self.weights, self.max_steps, self.auto_reset, self.cfg.difficulty.is_none());
+        let od = p.obs_dim();
+        let nt = TERM_NAMES.len();
+        let finished: Vec<Option<crate::score::ScoreAccumulator>> = self
+            .agents
+            .par_iter_mut()
+            .zip(actions.par_chunks(NJ))
+            .zip(self.obs.par_chunks_mut(od))
+            .zip(self.terms.par_chunks_mut(nt))
+            .zip(self.rewards.par_iter_mut())
+            .zip(self.dones.par_iter_mut().zip(self.timeouts.par_iter_mut()))
+            .enumerate()
+            .map(|(i, (((((a, act), o), t), r), (d, to)))| {
+                if a.frozen {
+                    *r = 0.0;
+                    *d = true;
+                    *to = false;
+                    t.fill(0.0);
+                    return None;
+                }
+                let rep = a.step(p, w, act, max_steps);
+                *r = rep.reward;
+                *d = rep.done;
+                *to = rep.timeout;
+                t.copy_from_slice(&a.terms.values);
+                let mut done_score = None;
+                if rep.done {
+                    done_score = Some(a.score.clone());
+                    if auto_reset {
+                        if curriculum {
+                            let commanded = a.cmd.speed * max_steps as f32 * p.policy_dt();
+                            a.level = curriculum_update(a.level, a.walked(), commanded);
+                        }
+                        a.reset(p, terrain.tile(a.level, i).clone());
+                    } else {
+                        a.frozen = true;
+                    }
+                }
+                a.observe(p, o);
+                done_score
+            })
+            .collect();
+        self.finished.extend(finished.into_iter().flatten());
+        if let Some(i) = self.obs.iter().position(|v| !v.is_finite()) {
+            return Err(Error::NonFinite { robot: i / od, quantity: "observation" });
+        }
+        Ok(StepResult { obs: &self.obs, rewards: &self.rewards, dones: &self.dones, timeouts: &self.timeouts, terms: &self.terms })
+    }
+
+    /// Scores of episodes that ended since the last reset, plus the running episodes of
+    /// frozen (evaluated) robots; used by the evaluation.
+    pub fn gait_score(&self) -> GaitScore {
+        score::summarize(&self.finished, self.mass)
+    }
+
+    /// Robot mass (kg).
+    pub fn robot_mass(&self) -> f32 {
+        self.mass
+    }
+
+    /// Base heights above the ground the feet stand on (mean terrain height under the
+    /// four feet) and tilts |g_xy|, per robot.
+    pub fn base_heights_and_tilts(&self) -> Vec<(f32, f32)> {
+        self.agents
+            .iter()
+            .map(|a| {
+                let b = a.world.base();
+                let g = b.rot.inverse() * rapier3d::math::Vector::new(0.0, 0.0, -1.0);
+                let feet = a.world.foot_positions();
+                let ground = feet.iter().map(|f| a.world.tile().height(f.x, f.y)).sum::<f32>() / feet.len() as f32;
+                (b.pos.z - ground, g.x.hypot(g.y))
+            })
+            .collect()
+    }
+
+    /// Body and foot positions of robot `i` (for rendering).
+    pub fn robot_geometry(&self, i: usize) -> (Vec<rapier3d::math::Vector>, Vec<rapier3d::math::Vector>) {
+        let w = &self.agents[i].world;
+        (w.body_positions(), w.foot_positions())
+    }
+
+    /// Tilts robot `i` by `angle` about its base x axis, keeping its joints (tests use it
+    /// to check fall detection).
+    pub fn tip_over(&mut self, i: usize, angle: f32) {
+        let a = &mut self.agents[i];
+        let b = a.world.base();
+        let mut q = [0.0; NJ];
+        let mut qd = [0.0; NJ];
+        a.world.joint_state(&mut q, &mut qd);
+        let yaw = crate::agent::yaw_of(&b.rot);
+        a.world.reset_with_rotation(b.pos.x, b.pos.y, b.pos.z, rapier3d::math::Rotation::from_rotation_z(yaw) * rapier3d::math::Rotation::from_rotation_x(angle), &q);
+    }
+
+    /// The physics' terrain height under (x, y) for robot `i` (ray cast against its collider).
+    pub fn ray_height(&mut self, i: usize, x: f32, y: f32) -> Option<f32> {
+        self.agents[i].world.ray_height(x, y)
+    }
+
+    /// The tile's terrain height under (x, y) for robot `i`.
+    pub fn tile_height(&self, i: usize, x: f32, y: f32) -> f32 {
+        self.agents[i].world.tile().height(x, y)
+    }
+}

@@ -1,0 +1,22 @@
+//! gaitsweep-sim: quadruped robots from URDF, simulated in rapier3d, one world per robot,
+//! stepped in parallel; the reward of Kim et al. 2024 (Eq. 1) and the gait score (Eq. 4).
+//!
+//! This crate has no network and no libtorch: the trainer and the benchmarks drive it.
+
+pub mod agent;
+pub mod env;
+pub mod error;
+pub mod eval;
+pub mod preset;
+pub mod reward;
+pub mod robot;
+pub mod score;
+pub mod terrain;
+pub mod urdf;
+
+pub use env::{EnvConfig, StepResult, VecEnv};
+pub use error::{Error, Result};
+pub use eval::{evaluate, EvalConfig};
+pub use preset::{GridSpec, PpoConfig, Preset};
+pub use score::GaitScore;
+pub use terrain::TerrainKind;

@@ -1,0 +1,157 @@
+//! The gait score (paper Eq. 4, our reading in DESIGN.md) and the locomotion metrics
+//! recorded beside it.
+
+use serde::{Deserialize, Serialize};
+
+/// The gait score of a cell and its components, averaged over its robots.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct GaitScore {
+    /// J = mean(track - effort - tilt) + progress, averaged over robots.
+    pub score: f64,
+    /// Mean velocity tracking kernel, in [0, 1].
+    pub track: f64,
+    /// Mean normalised torque |tau|_2 / (sqrt(12) tau_max), in [0, 1].
+    pub effort: f64,
+    /// Mean |g_xy| (horizontal part of gravity in the base frame).
+    pub tilt: f64,
+    /// Sum of squared per-step base displacements (m²).
+    pub progress: f64,
+    /// Fraction of robots that fell.
+    pub fall_rate: f64,
+    /// Mean |v_cmd - v| (m/s).
+    pub mean_vel_error: f64,
+    /// Mean absolute joint torque (N·m).
+    pub mean_abs_torque: f64,
+    /// Cost of transport: mean mechanical power / (m g mean speed).
+    pub cost_of_transport: f64,
+    /// Robots scored.
+    pub robots: usize,
+}
+
+/// One robot's per-step quantities for the score.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ScoreStep {
+    /// Commanded velocity in the heading frame (x, y).
+    pub cmd: [f32; 2],
+    /// Base velocity in the heading frame (x, y).
+    pub vel: [f32; 2],
+    /// |tau|_2 of the step (mean over substeps of the 2-norm).
+    pub torque_norm: f32,
+    /// Mean |tau_j| over joints.
+    pub mean_abs_torque: f32,
+    /// Mechanical power sum |tau_j qd_j| (W).
+    pub power: f32,
+    /// Horizontal part of gravity in the base frame.
+    pub gravity_xy: [f32; 2],
+    /// Base displacement in the world xy plane since the previous step.
+    pub displacement: [f32; 2],
+}
+
+/// Accumulates one robot's episode.
+#[derive(Debug, Clone, Default)]
+pub struct ScoreAccumulator {
+    steps: u64,
+    track: f64,
+    effort: f64,
+    tilt: f64,
+    progress: f64,
+    vel_err: f64,
+    abs_torque: f64,
+    power: f64,
+    speed: f64,
+    /// Whether the robot fell.
+    pub fell: bool,
+}
+
+impl ScoreAccumulator {
+    /// Adds one policy step. `sigma` is the tracking kernel width, `tau_max` the torque limit.
+    pub fn add(&mut self, s: &ScoreStep, sigma: f32, tau_max: f32, joints: usize) {
+        let ex = (s.cmd[0] - s.vel[0]) as f64;
+        let ey = (s.cmd[1] - s.vel[1]) as f64;
+        let err2 = ex * ex + ey * ey;
+        self.steps += 1;
+        self.track += (-err2 / sigma as f64).exp();
+        self.effort += s.torque_norm as f64 / ((joints as f64).sqrt() * tau_max as f64);
+        self.tilt += (s.gravity_xy[0] as f64).hypot(s.gravity_xy[1] as f64);
+        self.progress += (s.displacement[0] as f64).powi(2) + (s.displacement[1] as f64).powi(2);
+        self.vel_err += err2.sqrt();
+        self.abs_torque += s.mean_abs_torque as f64;
+        self.power += s.power as f64;
+        self.speed += (s.vel[0] as f64).hypot(s.vel[1] as f64);
+    }
+
+    /// Steps accumulated.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// This robot's J.
+    pub fn j(&self) -> f64 {
+        if self.steps == 0 {
+            return 0.0;
+        }
+        let t = self.steps as f64;
+        (self.track - self.effort - self.tilt) / t + self.progress
+    }
+}
+
+/// Averages robots' accumulators into a cell's score. `mass` is the robot's mass (kg).
+pub fn summarize(robots: &[ScoreAccumulator], mass: f32) -> GaitScore {
+    let n = robots.len().max(1) as f64;
+    let mut s = GaitScore { robots: robots.len(), ..Default::default() };
+    let (mut power, mut speed) = (0.0, 0.0);
+    for r in robots {
+        let t = r.steps.max(1) as f64;
+        s.score += r.j() / n;
+        s.track += r.track / t / n;
+        s.effort += r.effort / t / n;
+        s.tilt += r.tilt / t / n;
+        s.progress += r.progress / n;
+        s.fall_rate += if r.fell { 1.0 / n } else { 0.0 };
+        s.mean_vel_error += r.vel_err / t / n;
+        s.mean_abs_torque += r.abs_torque / t / n;
+        power += r.power / t / n;
+        speed += r.speed / t / n;
+    }
+    s.cost_of_transport = if speed > 1e-3 { power / (mass as f64 * 9.81 * speed) } else { 0.0 };
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_component_matches_a_hand_computation() {
+        let mut a = ScoreAccumulator::default();
+        let s1 = ScoreStep {
+            cmd: [1.0, 0.0],
+            vel: [0.5, 0.0],
+            torque_norm: 80.0,
+            mean_abs_torque: 10.0,
+            power: 50.0,
+            gravity_xy: [0.3, 0.4],
+            displacement: [0.01, 0.0],
+        };
+        let s2 = ScoreStep { vel: [1.0, 0.0], gravity_xy: [0.0, 0.0], displacement: [0.02, 0.0], ..s1 };
+        a.add(&s1, 0.25, 80.0, 12);
+        a.add(&s2, 0.25, 80.0, 12);
+        let track = ((-0.25f64 / 0.25).exp() + 1.0) / 2.0;
+        let effort = 80.0 / (12f64.sqrt() * 80.0);
+        let tilt = 0.5 / 2.0;
+        let progress = 0.0001 + 0.0004;
+        assert!((a.j() - (track - effort - tilt + progress)).abs() < 1e-9);
+        let mut b = a.clone();
+        b.fell = true;
+        let s = summarize(&[a, b], 25.0);
+        assert!((s.track - track).abs() < 1e-9);
+        assert!((s.effort - effort).abs() < 1e-9);
+        assert!((s.tilt - tilt).abs() < 1e-9);
+        assert!((s.progress - progress).abs() < 1e-12);
+        assert!((s.fall_rate - 0.5).abs() < 1e-12);
+        assert!((s.mean_vel_error - 0.25).abs() < 1e-9);
+        assert!((s.mean_abs_torque - 10.0).abs() < 1e-9);
+        assert!((s.cost_of_transport - 50.0 / (25.0 * 9.81 * 0.75)).abs() < 1e-9);
+        assert_eq!(s.robots, 2);
+    }
+}

@@ -1,0 +1,296 @@
+//! Terrains of legged_gym: flat, rough (random heightfield), stairs (up and down) and
+//! slopes, at difficulty levels 0..=9, with legged_gym's curriculum rule.
+//!
+//! Every robot lives in its own world on one square tile made of 3 x 3 sub-tiles of
+//! [`SUB_TILE`] metres of the same level; it spawns in the middle of the centre sub-tile.
+//! Tiles are generated once per (kind, level, variant) and shared by every world.
+
+use std::fmt;
+use std::str::FromStr;
+use std::sync::Arc;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::error::Error;
+
+/// Side of one legged_gym sub-tile (m).
+pub const SUB_TILE: f32 = 8.0;
+/// Side of the tile a robot lives on (m).
+pub const TILE: f32 = 3.0 * SUB_TILE;
+/// Horizontal resolution of the heightfield (m), legged_gym's `horizontal_scale`.
+pub const HORIZONTAL_SCALE: f32 = 0.1;
+/// Number of difficulty levels (legged_gym's `num_rows`).
+pub const LEVELS: u8 = 10;
+/// legged_gym's platform in the middle of stairs and slopes (m).
+const PLATFORM: f32 = 3.0;
+
+/// The kinds of terrain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, PartialOrd, Ord)]
+#[serde(rename_all = "lowercase")]
+pub enum TerrainKind {
+    /// A flat plane.
+    Flat,
+    /// Random uniform heightfield.
+    Rough,
+    /// Pyramid stairs, up for even robots, down for odd ones.
+    Stairs,
+    /// Pyramid slopes, up for even robots, down for odd ones.
+    Slopes,
+}
+
+impl TerrainKind {
+    /// All kinds.
+    pub const ALL: [TerrainKind; 4] = [Self::Flat, Self::Rough, Self::Stairs, Self::Slopes];
+}
+
+impl fmt::Display for TerrainKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Flat => "flat",
+            Self::Rough => "rough",
+            Self::Stairs => "stairs",
+            Self::Slopes => "slopes",
+        })
+    }
+}
+
+impl FromStr for TerrainKind {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self, Error> {
+        match s.to_ascii_lowercase().as_str() {
+            "flat" => Ok(Self::Flat),
+            "rough" => Ok(Self::Rough),
+            "stairs" => Ok(Self::Stairs),
+            "slopes" | "slope" => Ok(Self::Slopes),
+            other => Err(Error::InvalidArgument(format!(
+                "unknown terrain {other:?}; expected flat, rough, stairs or slopes"
+            ))),
+        }
+    }
+}
+
+/// legged_gym's terrain parameters at a difficulty level.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LevelParams {
+    /// difficulty = level / LEVELS, in [0, 0.9].
+    pub difficulty: f32,
+    /// Slope (rise over run) of pyramid slopes: 0.4 * difficulty.
+    pub slope: f32,
+    /// Stair height (m): 0.05 + 0.18 * difficulty.
+    pub step_height: f32,
+    /// Stair width (m).
+    pub step_width: f32,
+    /// Half range of the random heights of rough terrain (m).
+    pub roughness: f32,
+}
+
+impl LevelParams {
+    /// The parameters of a level (clamped to 0..LEVELS).
+    pub fn at(level: u8) -> LevelParams {
+        let difficulty = level.min(LEVELS - 1) as f32 / LEVELS as f32;
+        LevelParams {
+            difficulty,
+            slope: 0.4 * difficulty,
+            step_height: 0.05 + 0.18 * difficulty,
+            step_width: 0.31,
+            roughness: 0.02 + 0.1 * difficulty,
+        }
+    }
+}
+
+/// legged_gym's curriculum: move up a level after walking farther than half a sub-tile,
+/// down after covering less than half the commanded distance; stay within 0..LEVELS.
+pub fn curriculum_update(level: u8, walked: f32, commanded: f32) -> u8 {
+    if walked > SUB_TILE / 2.0 {
+        (level + 1).min(LEVELS - 1)
+    } else if walked < commanded * 0.5 {
+        level.saturating_sub(1)
+    } else {
+        level
+    }
+}
+
+/// A square heightfield centred on the origin, heights in metres.
+#[derive(Debug, Clone)]
+pub struct HeightGrid {
+    /// Samples per side.
+    pub n: usize,
+    /// Spacing (m).
+    pub scale: f32,
+    /// Heights, `h[ix * n + iy]`, x = (ix - (n-1)/2) * scale.
+    pub h: Vec<f32>,
+}
+
+impl HeightGrid {
+    /// A grid of `side` metres at `scale` filled by `f(x, y)`.
+    pub fn from_fn(side: f32, scale: f32, f: impl Fn(f32, f32) -> f32) -> HeightGrid {
+        let n = (side / scale).round() as usize + 1;
+        let half = (n - 1) as f32 / 2.0;
+        let mut h = Vec::with_capacity(n * n);
+        for ix in 0..n {
+            for iy in 0..n {
+                h.push(f((ix as f32 - half) * scale, (iy as f32 - half) * scale));
+            }
+        }
+        HeightGrid { n, scale, h }
+    }
+
+    /// Side length (m).
+    pub fn side(&self) -> f32 {
+        (self.n - 1) as f32 * self.scale
+    }
+
+    /// Bilinear height at (x, y); outside the grid, the nearest edge.
+    pub fn height(&self, x: f32, y: f32) -> f32 {
+        let half = (self.n - 1) as f32 / 2.0;
+        let max = (self.n - 1) as f32;
+        let fx = (x / self.scale + half).clamp(0.0, max);
+        let fy = (y / self.scale + half).clamp(0.0, max);
+        let (ix, iy) = ((fx.floor() as usize).min(self.n - 2), (fy.floor() as usize).min(self.n - 2));
+        let (tx, ty) = (fx - ix as f32, fy - iy as f32);
+        let at = |a: usize, b: usize| self.h[a * self.n + b];
+        let h0 = at(ix, iy) * (1.0 - ty) + at(ix, iy + 1) * ty;
+        let h1 = at(ix + 1, iy) * (1.0 - ty) + at(ix + 1, iy + 1) * ty;
+        h0 * (1.0 - tx) + h1 * tx
+    }
+}
+
+/// One generated tile.
+#[derive(Debug)]
+pub struct Tile {
+    /// Kind of terrain.
+    pub kind: TerrainKind,
+    /// Difficulty level.
+    pub level: u8,
+    /// The heights; `None` for flat ground (a plane at z = 0).
+    pub grid: Option<HeightGrid>,
+}
+
+impl Tile {
+    /// Terrain height at (x, y).
+    pub fn height(&self, x: f32, y: f32) -> f32 {
+        self.grid.as_ref().map_or(0.0, |g| g.height(x, y))
+    }
+}
+
+/// Position inside the 8 m sub-tile, centred: in [-4, 4).
+fn sub(v: f32) -> f32 {
+    (v + SUB_TILE / 2.0).rem_euclid(SUB_TILE) - SUB_TILE / 2.0
+}
+
+/// Generates the tile of a kind at a level; `variant` picks up (even) or down (odd) for
+/// stairs and slopes, and the random field of rough terrain.
+pub fn generate(kind: TerrainKind, level: u8, variant: u32) -> Tile {
+    let p = LevelParams::at(level);
+    let sign = if variant % 2 == 0 { 1.0 } else { -1.0 };
+    let grid = match kind {
+        TerrainKind::Flat => None,
+        TerrainKind::Rough => {
+            // legged_gym: uniform noise on a coarser grid (downsampled_scale 0.2 m), upsampled.
+            let mut rng = ChaCha8Rng::seed_from_u64(0x7e11a1 ^ ((level as u64) << 8) ^ variant as u64);
+            let coarse = HeightGrid {
+                n: (TILE / 0.2) as usize + 1,
+                scale: 0.2,
+                h: (0..((TILE / 0.2) as usize + 1).pow(2))
+                    .map(|_| rng.random_range(-p.roughness..=p.roughness))
+                    .collect(),
+            };
+            let mut g = HeightGrid::from_fn(TILE, HORIZONTAL_SCALE, |x, y| coarse.height(x, y));
+            // Quantise like legged_gym's vertical_scale (5 mm).
+            for h in &mut g.h {
+                *h = (*h / 0.005).round() * 0.005;
+            }
+            Some(g)
+        }
+        TerrainKind::Stairs => Some(HeightGrid::from_fn(TILE, HORIZONTAL_SCALE, |x, y| {
+            // Pyramid stairs: one step per step_width from the sub-tile edge to the platform.
+            let d = (SUB_TILE / 2.0 - sub(x).abs()).min(SUB_TILE / 2.0 - sub(y).abs());
+            let steps = (d / p.step_width).floor().min(((SUB_TILE - PLATFORM) / 2.0 / p.step_width).floor());
+            sign * steps * p.step_height
+        })),
+        TerrainKind::Slopes => Some(HeightGrid::from_fn(TILE, HORIZONTAL_SCALE, |x, y| {
+            let d = (SUB_TILE / 2.0 - sub(x).abs()).min(SUB_TILE / 2.0 - sub(y).abs());
+            sign * d.min((SUB_TILE - PLATFORM) / 2.0) * p.slope
+        })),
+    };
+    Tile { kind, level, grid }
+}
+
+/// Every tile of a kind, by level and variant, generated once and shared.
+#[derive(Debug, Clone)]
+pub struct TerrainSet {
+    /// `tiles[level][variant]`.
+    pub tiles: Vec<Vec<Arc<Tile>>>,
+}
+
+impl TerrainSet {
+    /// Generates the tiles of `kind` (two variants: up/down, or two random fields).
+    pub fn new(kind: TerrainKind) -> TerrainSet {
+        let variants = if kind == TerrainKind::Flat { 1 } else { 2 };
+        TerrainSet {
+            tiles: (0..LEVELS)
+                .map(|l| (0..variants).map(|v| Arc::new(generate(kind, l, v))).collect())
+                .collect(),
+        }
+    }
+
+    /// The tile of a robot at a level.
+    pub fn tile(&self, level: u8, robot: usize) -> &Arc<Tile> {
+        let row = &self.tiles[level.min(LEVELS - 1) as usize];
+        &row[robot % row.len()]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn levels_follow_legged_gym() {
+        let p = LevelParams::at(5);
+        assert!((p.step_height - (0.05 + 0.18 * 0.5)).abs() < 1e-6);
+        assert!((p.slope - 0.2).abs() < 1e-6);
+        assert_eq!(LevelParams::at(200).difficulty, 0.9);
+    }
+
+    #[test]
+    fn curriculum_moves_up_down_and_stays_in_range() {
+        assert_eq!(curriculum_update(3, 4.5, 10.0), 4);
+        assert_eq!(curriculum_update(3, 2.0, 10.0), 2);
+        assert_eq!(curriculum_update(3, 3.0, 5.0), 3);
+        assert_eq!(curriculum_update(0, 0.0, 10.0), 0);
+        assert_eq!(curriculum_update(LEVELS - 1, 9.0, 1.0), LEVELS - 1);
+    }
+
+    #[test]
+    fn stairs_rise_to_the_platform_and_fall_for_the_down_variant() {
+        let up = generate(TerrainKind::Stairs, 9, 0);
+        let down = generate(TerrainKind::Stairs, 9, 1);
+        let p = LevelParams::at(9);
+        let top = up.height(0.0, 0.0);
+        assert!((top - 8.0 * p.step_height).abs() < 1e-4, "{top}");
+        assert!((down.height(0.0, 0.0) + top).abs() < 1e-4);
+        assert_eq!(up.height(3.95, 0.0), 0.0);
+    }
+
+    #[test]
+    fn rough_is_deterministic_and_bounded() {
+        let a = generate(TerrainKind::Rough, 0, 0);
+        let b = generate(TerrainKind::Rough, 0, 0);
+        let ga = a.grid.as_ref().unwrap();
+        assert_eq!(ga.h, b.grid.as_ref().unwrap().h);
+        let p = LevelParams::at(0);
+        assert!(ga.h.iter().all(|h| h.abs() <= p.roughness + 0.003));
+        assert!(ga.h.iter().any(|h| *h != 0.0));
+    }
+
+    #[test]
+    fn parse_and_display_round_trip() {
+        for k in TerrainKind::ALL {
+            assert_eq!(k.to_string().parse::<TerrainKind>().unwrap(), k);
+        }
+        assert!("lava".parse::<TerrainKind>().unwrap_err().to_string().contains("flat, rough"));
+    }
+}
