@@ -254,14 +254,23 @@ impl Agent {
             put(self.actions[k]);
         }
         let yaw = yaw_of(&base.rot);
-        let (s, c) = yaw.sin_cos();
-        let tile = self.world.tile();
-        for &sx in &o.scan_x {
-            for &sy in &o.scan_y {
-                let (x, y) = (base.pos.x + c * sx - s * sy, base.pos.y + s * sx + c * sy);
-                let h = tile.height(x, y);
-                put((base.pos.z - p.nominal_base_height - h).clamp(-1.0, 1.0) * o.height_scale);
-            }
+        let scan = &mut out[i..];
+        height_scan(self.world.tile(), [base.pos.x, base.pos.y, base.pos.z], yaw, p, scan);
+    }
+}
+
+/// legged_gym's height scan: for each point of the preset's grid, laid out in the yaw frame
+/// around the base, `clip(base_z - nominal_height - h, -1, 1) * height_scale`.
+pub fn height_scan(tile: &Tile, base: [f32; 3], yaw: f32, p: &Preset, out: &mut [f32]) {
+    let o = &p.observation;
+    let (s, c) = yaw.sin_cos();
+    let mut i = 0;
+    for &sx in &o.scan_x {
+        for &sy in &o.scan_y {
+            let (x, y) = (base[0] + c * sx - s * sy, base[1] + s * sx + c * sy);
+            let h = tile.height(x, y);
+            out[i] = (base[2] - p.nominal_base_height - h).clamp(-1.0, 1.0) * o.height_scale;
+            i += 1;
         }
     }
 }

@@ -285,6 +285,17 @@ impl VecEnv {
         self.agents[i].world.ray_height(x, y)
     }
 
+    /// Base position and yaw of robot `i`.
+    pub fn base_pose(&self, i: usize) -> ([f32; 3], f32) {
+        let b = self.agents[i].world.base();
+        ([b.pos.x, b.pos.y, b.pos.z], crate::agent::yaw_of(&b.rot))
+    }
+
+    /// The tile robot `i` stands on.
+    pub fn tile(&self, i: usize) -> &crate::terrain::Tile {
+        self.agents[i].world.tile()
+    }
+
     /// The tile's terrain height under (x, y) for robot `i`.
     pub fn tile_height(&self, i: usize, x: f32, y: f32) -> f32 {
         self.agents[i].world.tile().height(x, y)

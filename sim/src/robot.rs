@@ -381,7 +381,10 @@ impl RobotWorld {
     pub fn ray_height(&mut self, x: f32, y: f32) -> Option<f32> {
         let t = self.terrain?;
         let c = &self.world.colliders[t];
-        let ray = Ray::new(Vector::new(x, y, 50.0), Vector::new(0.0, 0.0, -1.0));
-        c.shape().cast_ray(c.position(), &ray, 100.0, true).map(|toi| 50.0 - toi)
+        // parry's heightfield ray cast walks cells in the ray's horizontal projection, which
+        // a perfectly vertical ray does not have: start 20 m up with a 1e-4 slant aimed at (x, y, 0).
+        let d = Vector::new(1e-4, 1e-4, -1.0).normalize();
+        let ray = Ray::new(Vector::new(x - d.x * (20.0 / -d.z), y - d.y * (20.0 / -d.z), 20.0), d);
+        c.shape().cast_ray(c.position(), &ray, 100.0, true).map(|toi| ray.point_at(toi).z)
     }
 }
