@@ -56,6 +56,7 @@ pub struct VecEnv {
     max_steps: u32,
     auto_reset: bool,
     mass: f32,
+    half_extents: rapier3d::math::Vector,
     obs: Vec<f32>,
     rewards: Vec<f32>,
     dones: Vec<bool>,
@@ -101,6 +102,7 @@ impl VecEnv {
             max_steps,
             auto_reset: true,
             mass: model.total_mass,
+            half_extents: model.links[0].shapes.iter().find_map(|(_, s)| match s { crate::urdf::Shape::Cuboid(h) => Some(*h), _ => None }).unwrap_or(rapier3d::math::Vector::splat(0.2)),
             obs: vec![0.0; n * preset.obs_dim()],
             rewards: vec![0.0; n],
             dones: vec![false; n],
@@ -266,6 +268,19 @@ impl VecEnv {
     pub fn robot_geometry(&self, i: usize) -> (Vec<rapier3d::math::Vector>, Vec<rapier3d::math::Vector>) {
         let w = &self.agents[i].world;
         (w.body_positions(), w.foot_positions())
+    }
+
+    /// A rendering frame of robot `i` (see [`crate::render`]).
+    pub fn render_frame(&self, i: usize) -> crate::render::Frame {
+        let w = &self.agents[i].world;
+        let b = w.base();
+        let bodies = w.body_positions();
+        crate::render::Frame { base_pos: b.pos, base_rot: b.rot, joints: bodies[1..].to_vec(), feet: w.foot_positions() }
+    }
+
+    /// Half extents of robot `i`'s body box (for rendering).
+    pub fn body_half_extents(&self) -> rapier3d::math::Vector {
+        self.half_extents
     }
 
     /// Tilts robot `i` by `angle` about its base x axis, keeping its joints (tests use it

@@ -8,6 +8,7 @@ pub mod env;
 pub mod error;
 pub mod eval;
 pub mod preset;
+pub mod render;
 pub mod reward;
 pub mod robot;
 pub mod score;

@@ -131,3 +131,19 @@ fn the_physics_terrain_matches_the_tile_heights() {
         }
     }
 }
+
+#[test]
+fn a_gait_renders_to_a_gif() {
+    let mut e = env("anymal", TerrainKind::Stairs, 1, 2);
+    let mut frames = Vec::new();
+    let zeros = vec![0.0; 12];
+    for _ in 0..5 {
+        e.step(&zeros).unwrap();
+        frames.push(e.render_frame(0));
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("gait.gif");
+    gaitsweep_sim::render::write_gif(&path, e.tile(0), &frames, e.body_half_extents(), 10).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    assert!(bytes.starts_with(b"GIF89a") && bytes.len() > 5_000, "{} bytes", bytes.len());
+}
