@@ -296,9 +296,10 @@ pub struct Preset {
 }
 
 impl Preset {
-    /// Loads the preset of a robot by name from [`robots_dir`].
+    /// Loads the preset of a robot by name from [`robots_dir`], or from a preset directory
+    /// when `robot` is a path (contains `/`), e.g. a robot kept outside this repository.
     pub fn load(robot: &str) -> Result<Preset> {
-        let dir = robots_dir().join(robot);
+        let dir = if robot.contains('/') { PathBuf::from(robot) } else { robots_dir().join(robot) };
         if !dir.join("preset.toml").is_file() {
             let known = Self::available().join(", ");
             return Err(Error::Preset {

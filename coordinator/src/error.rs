@@ -1,0 +1,106 @@
+//! The coordinator library's error type and its one mapping to gRPC status codes.
+
+use gaitsweep_core::{CellId, LeaseId, SweepId};
+
+/// Errors of the coordinator library.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A domain-level problem (bad spec, bad wire message).
+    #[error(transparent)]
+    Core(#[from] gaitsweep_core::Error),
+    /// The database failed.
+    #[error("database: {0}")]
+    Db(#[from] sqlx::Error),
+    /// Applying the embedded migrations failed.
+    #[error("database migration failed, check that the data dir belongs to this version: {0}")]
+    Migrate(#[from] sqlx::migrate::MigrateError),
+    /// File IO failed.
+    #[error("{context}: {source}")]
+    Io {
+        /// What was being done.
+        context: String,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// Stored JSON could not be read or written.
+    #[error("stored json is invalid: {0}")]
+    Json(#[from] serde_json::Error),
+    /// No sweep has this id.
+    #[error("sweep {0} does not exist: list sweeps to see valid ids")]
+    UnknownSweep(SweepId),
+    /// No cell has this id.
+    #[error("cell {0} does not exist")]
+    UnknownCell(CellId),
+    /// No lease has this id.
+    #[error("lease {0} does not exist: lease a cell first")]
+    UnknownLease(LeaseId),
+    /// The worker id is not registered.
+    #[error("worker {0:?} is not registered: call register first")]
+    UnknownWorker(String),
+    /// No checkpoint has this hash.
+    #[error("checkpoint {0} is not stored")]
+    UnknownCheckpoint(String),
+    /// Nothing was promoted yet.
+    #[error("sweep {0} has no promoted cell yet: wait until a cell finishes")]
+    NothingPromoted(SweepId),
+    /// The cell of a lease is finished or cancelled; the report is refused.
+    #[error("cell {cell} is {state}: stop working on it")]
+    CellClosed {
+        /// The cell.
+        cell: CellId,
+        /// Its state.
+        state: String,
+    },
+    /// An upload was larger than allowed.
+    #[error("checkpoint of {size} bytes exceeds the limit of {limit} bytes: raise --max-checkpoint-mb or send a smaller file")]
+    TooLarge {
+        /// Bytes sent or announced.
+        size: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// An upload did not match its announced hash or size.
+    #[error("checkpoint upload is corrupt: {0}")]
+    Corrupt(String),
+    /// The server could not be set up or failed while serving.
+    #[error("server: {0}")]
+    Server(String),
+    /// A request is malformed.
+    #[error("bad request: {0}")]
+    BadRequest(String),
+}
+
+/// Result alias of the coordinator library.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl From<Error> for tonic::Status {
+    fn from(e: Error) -> Self {
+        use tonic::Status;
+        let msg = e.to_string();
+        match e {
+            Error::Core(gaitsweep_core::Error::InvalidSpec(_))
+            | Error::Core(gaitsweep_core::Error::SpecToml(_))
+            | Error::Core(gaitsweep_core::Error::MissingField { .. })
+            | Error::Core(gaitsweep_core::Error::UnknownValue { .. })
+            | Error::Corrupt(_)
+            | Error::BadRequest(_) => Status::invalid_argument(msg),
+            Error::UnknownSweep(_)
+            | Error::UnknownCell(_)
+            | Error::UnknownLease(_)
+            | Error::UnknownCheckpoint(_)
+            | Error::NothingPromoted(_) => Status::not_found(msg),
+            Error::UnknownWorker(_) | Error::CellClosed { .. } => Status::failed_precondition(msg),
+            Error::TooLarge { .. } => Status::resource_exhausted(msg),
+            Error::Db(_) | Error::Migrate(_) | Error::Server(_) | Error::Io { .. } | Error::Json(_) => {
+                tracing::error!(error = %msg, "internal error");
+                Status::internal(msg)
+            }
+        }
+    }
+}
+
+/// Wraps an IO error with what was being done.
+pub(crate) fn io(context: impl Into<String>) -> impl FnOnce(std::io::Error) -> Error {
+    let context = context.into();
+    move |source| Error::Io { context, source }
+}

@@ -1,0 +1,15 @@
+//! gaitsweep coordinator: holds sweeps (grids of (w1, w2) cells), leases cells to worker
+//! daemons over gRPC, stores scores, metrics and checkpoints in SQLite and promotes the
+//! best model of each sweep.
+
+pub mod auth;
+pub mod blobs;
+pub mod error;
+pub mod leases;
+pub mod report;
+pub mod sched;
+pub mod serve;
+pub mod service;
+pub mod store;
+
+pub use error::{Error, Result};

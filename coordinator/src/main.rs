@@ -1,0 +1,88 @@
+//! `coordinator`: serve the sweep coordinator, or talk to one as a client.
+
+mod cli;
+
+use clap::{Parser, Subcommand};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+#[derive(Parser)]
+#[command(name = "coordinator", version, about = "gaitsweep coordinator: serve sweeps or query a running coordinator")]
+struct Args {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Serve the coordinator (gRPC) with its SQLite database in the data dir.
+    Serve(ServeArgs),
+    /// Write a sweep's report (heatmaps, 3D surface, learning curves, gait GIF, index.html) from the data dir's database.
+    Report(gaitsweep_coordinator::report::ReportArgs),
+    /// Client commands against a running coordinator.
+    #[command(flatten)]
+    Client(cli::ClientCmd),
+}
+
+#[derive(clap::Args)]
+struct ServeArgs {
+    /// Address to listen on; port 0 picks a free port (written to DATA_DIR/coordinator.addr).
+    #[arg(long, default_value = "127.0.0.1:50051")]
+    listen: SocketAddr,
+    /// Directory for the database and checkpoints.
+    #[arg(long)]
+    data_dir: PathBuf,
+    /// Require this access token on every RPC.
+    #[arg(long, env = "GAITSWEEP_TOKEN")]
+    token: Option<String>,
+    /// PEM certificate chain for TLS (with --tls-key).
+    #[arg(long, requires = "tls_key")]
+    tls_cert: Option<PathBuf>,
+    /// PEM private key for TLS (with --tls-cert).
+    #[arg(long, requires = "tls_cert")]
+    tls_key: Option<PathBuf>,
+    /// Attempts (failures or expired leases) before a cell is marked failed.
+    #[arg(long, default_value_t = 3)]
+    max_attempts: u32,
+    /// Seconds a lease lives without a heartbeat.
+    #[arg(long, default_value_t = 30.0)]
+    lease_seconds: f64,
+    /// Largest checkpoint upload accepted, MiB.
+    #[arg(long, default_value_t = 512)]
+    max_checkpoint_mb: u64,
+}
+
+fn main() -> anyhow::Result<()> {
+    let args = Args::parse();
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let rt = tokio::runtime::Runtime::new()?;
+    rt.block_on(async move {
+        match args.cmd {
+            Cmd::Serve(a) => {
+                let cfg = gaitsweep_coordinator::serve::ServeConfig {
+                    listen: a.listen,
+                    data_dir: a.data_dir,
+                    token: a.token,
+                    tls: a.tls_cert.zip(a.tls_key),
+                    max_attempts: a.max_attempts,
+                    lease: Duration::from_secs_f64(a.lease_seconds),
+                    max_checkpoint_bytes: a.max_checkpoint_mb << 20,
+                };
+                let shutdown = async {
+                    let _ = tokio::signal::ctrl_c().await;
+                    tracing::info!("shutting down");
+                };
+                gaitsweep_coordinator::serve::serve(cfg, shutdown).await?;
+                Ok(())
+            }
+            Cmd::Report(a) => gaitsweep_coordinator::report::run(a).await,
+            Cmd::Client(c) => cli::run(c).await,
+        }
+    })
+}

@@ -1,0 +1,487 @@
+//! `coordinator report SWEEP --data-dir DIR --out OUT`: the pictures of a sweep, read
+//! straight from the coordinator's SQLite database (read-only; the coordinator may be
+//! running) and drawn with plotters:
+//!
+//! - `score_<terrain>.{png,svg}`: heatmap of the gait score over (w1, w2), best cell marked;
+//! - `surface_<terrain>.{png,svg}`: the same as a 3D surface;
+//! - `<component>_<terrain>.{png,svg}` for track, effort, tilt and progress;
+//! - `overlap.{png,svg}`: cells in the top quartile on every terrain (more than one terrain);
+//! - `curves_<terrain>.{png,svg}`: learning curves (mean reward per step and mean return);
+//! - `gait.gif`: the promoted policy walking (`worker render`, run from the `worker` binary
+//!   next to this executable);
+//! - `index.html`: all of it with the table of cells.
+//!
+//! Loading ([`load`]) is the only part that touches the database; everything else is a
+//! function of a [`ReportData`], so it is tested on synthetic data.
+
+mod html;
+mod plots;
+
+use anyhow::Context;
+use gaitsweep_sim::GaitScore;
+use sqlx::sqlite::{SqliteConnectOptions, SqlitePoolOptions};
+use sqlx::Row;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+pub use plots::{colormap, register_fonts};
+
+/// Name of the database file in a coordinator's data dir.
+pub const DB_FILE: &str = "gaitsweep.sqlite";
+
+/// Metrics drawn as learning curves, in the order they are looked for.
+pub const CURVE_METRICS: [&str; 3] = ["mean_step_reward", "mean_return", "eval/score"];
+
+/// One cell of the sweep with its score (if it has one).
+#[derive(Debug, Clone)]
+pub struct ReportCell {
+    /// Cell id.
+    pub id: i64,
+    /// Index of its terrain in [`ReportData::terrains`].
+    pub terrain_index: usize,
+    /// Terrain name.
+    pub terrain: String,
+    /// Row (index into [`ReportData::w1_values`]).
+    pub w1_index: usize,
+    /// Column (index into [`ReportData::w2_values`]).
+    pub w2_index: usize,
+    /// Velocity-tracking weight.
+    pub w1: f64,
+    /// log10 of the torque-penalty weight.
+    pub w2: f64,
+    /// queued, running, done, failed or cancelled.
+    pub state: String,
+    /// Attempts so far.
+    pub attempts: u32,
+    /// Epochs trained.
+    pub epochs_done: u32,
+    /// Last error, if any.
+    pub last_error: Option<String>,
+    /// The gait score and its components (done cells).
+    pub score: Option<GaitScore>,
+    /// The final (or latest) checkpoint, relative to the data dir.
+    pub checkpoint: Option<String>,
+    /// Learning curves: metric name -> (epoch, value), epochs ascending.
+    pub curves: BTreeMap<String, Vec<(u32, f64)>>,
+}
+
+impl ReportCell {
+    /// The composite score, if the cell has a finite one.
+    pub fn value(&self) -> Option<f64> {
+        self.score.as_ref().map(|s| s.score).filter(|v| v.is_finite())
+    }
+}
+
+/// A promoted (best) cell.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Promotion {
+    /// Terrain it is best on; empty: over all terrains.
+    pub terrain: String,
+    /// The cell.
+    pub cell_id: i64,
+    /// Its score.
+    pub score: f64,
+}
+
+/// Everything a report shows, loaded once from SQL.
+#[derive(Debug, Clone)]
+pub struct ReportData {
+    /// Sweep id.
+    pub sweep_id: i64,
+    /// Sweep name.
+    pub name: String,
+    /// Robot preset.
+    pub robot: String,
+    /// running, done or cancelled.
+    pub state: String,
+    /// Fixed difficulty of the sweep, if any.
+    pub difficulty: Option<u8>,
+    /// Terrains in grid order.
+    pub terrains: Vec<String>,
+    /// w1 values (grid rows).
+    pub w1_values: Vec<f64>,
+    /// w2 values (grid columns).
+    pub w2_values: Vec<f64>,
+    /// Every cell.
+    pub cells: Vec<ReportCell>,
+    /// Latest promotion per terrain ('' = overall).
+    pub promotions: Vec<Promotion>,
+}
+
+impl ReportData {
+    /// The cell with this id.
+    pub fn cell(&self, id: i64) -> Option<&ReportCell> {
+        self.cells.iter().find(|c| c.id == id)
+    }
+
+    /// The cells of terrain `t`.
+    pub fn cells_of(&self, t: usize) -> impl Iterator<Item = &ReportCell> {
+        self.cells.iter().filter(move |c| c.terrain_index == t)
+    }
+
+    /// The promoted cell over all terrains: the latest overall promotion, else the best
+    /// scored cell.
+    pub fn promoted(&self) -> Option<&ReportCell> {
+        self.promotions
+            .iter()
+            .find(|p| p.terrain.is_empty())
+            .and_then(|p| self.cell(p.cell_id))
+            .or_else(|| self.best_cell(None))
+    }
+
+    /// The best scored cell (highest score; ties: lowest id) of terrain `t`, or overall.
+    pub fn best_cell(&self, t: Option<usize>) -> Option<&ReportCell> {
+        self.cells
+            .iter()
+            .filter(|c| t.is_none_or(|t| c.terrain_index == t))
+            .filter_map(|c| c.value().map(|v| (c, v)))
+            .fold(None::<(&ReportCell, f64)>, |b, (c, v)| match b {
+                Some((bc, bv)) if bv > v || (bv == v && bc.id < c.id) => Some((bc, bv)),
+                _ => Some((c, v)),
+            })
+            .map(|b| b.0)
+    }
+
+    /// Grid `[w1_index][w2_index]` of terrain `t` filled with `f(cell)`.
+    pub fn grid<T: Clone>(&self, t: usize, empty: T, f: impl Fn(&ReportCell) -> T) -> Vec<Vec<T>> {
+        let mut g = vec![vec![empty; self.w2_values.len()]; self.w1_values.len()];
+        for c in self.cells_of(t) {
+            if let Some(slot) = g.get_mut(c.w1_index).and_then(|r| r.get_mut(c.w2_index)) {
+                *slot = f(c);
+            }
+        }
+        g
+    }
+
+    /// Cells `(w1_index, w2_index)` whose score is in the top quartile of their terrain's
+    /// scored cells on every terrain, and per grid position the number of terrains where
+    /// it is in the top quartile.
+    pub fn overlap(&self) -> (Vec<(usize, usize)>, Vec<Vec<Option<f64>>>) {
+        let mut count = vec![vec![Some(0.0); self.w2_values.len()]; self.w1_values.len()];
+        for t in 0..self.terrains.len() {
+            let mut v: Vec<f64> = self.cells_of(t).filter_map(|c| c.value()).collect();
+            if v.is_empty() {
+                continue;
+            }
+            v.sort_by(|a, b| b.total_cmp(a));
+            let threshold = v[v.len().div_ceil(4) - 1];
+            for c in self.cells_of(t) {
+                if c.value().is_some_and(|x| x >= threshold) {
+                    if let Some(Some(n)) = count.get_mut(c.w1_index).and_then(|r| r.get_mut(c.w2_index)) {
+                        *n += 1.0;
+                    }
+                }
+            }
+        }
+        let all = self.terrains.len() as f64;
+        let mut cells = Vec::new();
+        for (i, row) in count.iter().enumerate() {
+            for (j, n) in row.iter().enumerate() {
+                if all > 0.0 && *n == Some(all) {
+                    cells.push((i, j));
+                }
+            }
+        }
+        (cells, count)
+    }
+}
+
+/// Opens the data dir's database read-only (WAL: works while the coordinator runs).
+pub async fn open_db(data_dir: &Path) -> anyhow::Result<sqlx::SqlitePool> {
+    let path = data_dir.join(DB_FILE);
+    if !path.is_file() {
+        anyhow::bail!("no database at {}: is --data-dir the coordinator's data dir?", path.display());
+    }
+    let opts = SqliteConnectOptions::new()
+        .filename(&path)
+        .read_only(true)
+        .busy_timeout(Duration::from_secs(10));
+    SqlitePoolOptions::new()
+        .max_connections(1)
+        .connect_with(opts)
+        .await
+        .with_context(|| format!("open {} read-only", path.display()))
+}
+
+/// Loads everything the report of `sweep` shows.
+pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportData> {
+    let row = sqlx::query("SELECT id, name, robot, state, spec_json FROM sweeps WHERE id = ?")
+        .bind(sweep)
+        .fetch_optional(db)
+        .await?
+        .with_context(|| format!("no sweep {sweep} in this database"))?;
+    let spec: serde_json::Value = serde_json::from_str(row.try_get("spec_json")?).unwrap_or_default();
+    let floats = |k: &str| -> Vec<f64> {
+        spec.get(k).and_then(|v| v.as_array()).map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default()
+    };
+    let mut data = ReportData {
+        sweep_id: row.try_get("id")?,
+        name: row.try_get("name")?,
+        robot: row.try_get("robot")?,
+        state: row.try_get("state")?,
+        difficulty: spec.get("difficulty").and_then(|d| d.as_u64()).map(|d| d as u8),
+        terrains: spec
+            .get("terrains")
+            .and_then(|v| v.as_array())
+            .map(|a| a.iter().filter_map(|x| x.as_str().map(String::from)).collect())
+            .unwrap_or_default(),
+        w1_values: floats("w1_values"),
+        w2_values: floats("w2_values"),
+        cells: Vec::new(),
+        promotions: Vec::new(),
+    };
+
+    let rows = sqlx::query(
+        "SELECT c.id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, c.state, c.attempts, \
+         c.epochs_done, c.last_error, s.score, s.track, s.effort, s.tilt, s.progress, s.fall_rate, \
+         s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots, \
+         COALESCE(fk.path, lk.path) AS ckpt_path \
+         FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
+         LEFT JOIN checkpoints fk ON fk.sha256 = s.final_checkpoint_sha256 \
+         LEFT JOIN checkpoints lk ON lk.sha256 = c.last_checkpoint_sha256 \
+         WHERE c.sweep_id = ? ORDER BY c.terrain_index, c.w1_index, c.w2_index",
+    )
+    .bind(sweep)
+    .fetch_all(db)
+    .await?;
+    for r in &rows {
+        let score: Option<f64> = r.try_get("score")?;
+        let score = match score {
+            Some(score) => Some(GaitScore {
+                score,
+                track: r.try_get("track")?,
+                effort: r.try_get("effort")?,
+                tilt: r.try_get("tilt")?,
+                progress: r.try_get("progress")?,
+                fall_rate: r.try_get("fall_rate")?,
+                mean_vel_error: r.try_get("mean_vel_error")?,
+                mean_abs_torque: r.try_get("mean_abs_torque")?,
+                cost_of_transport: r.try_get("cost_of_transport")?,
+                robots: r.try_get::<i64, _>("robots")? as usize,
+            }),
+            None => None,
+        };
+        data.cells.push(ReportCell {
+            id: r.try_get("id")?,
+            terrain_index: r.try_get::<i64, _>("terrain_index")? as usize,
+            terrain: r.try_get("terrain")?,
+            w1_index: r.try_get::<i64, _>("w1_index")? as usize,
+            w2_index: r.try_get::<i64, _>("w2_index")? as usize,
+            w1: r.try_get("w1")?,
+            w2: r.try_get("w2")?,
+            state: r.try_get("state")?,
+            attempts: r.try_get::<i64, _>("attempts")? as u32,
+            epochs_done: r.try_get::<i64, _>("epochs_done")? as u32,
+            last_error: r.try_get("last_error")?,
+            score,
+            checkpoint: r.try_get("ckpt_path")?,
+            curves: BTreeMap::new(),
+        });
+    }
+
+    let names = CURVE_METRICS.map(|n| format!("'{n}'")).join(", ");
+    let sql = format!(
+        "SELECT m.cell_id, m.epoch, m.name, m.value FROM epoch_metrics m JOIN cells c ON c.id = m.cell_id \
+         WHERE c.sweep_id = ? AND m.name IN ({names}) ORDER BY m.cell_id, m.epoch"
+    );
+    let mut by_cell: BTreeMap<i64, BTreeMap<String, Vec<(u32, f64)>>> = BTreeMap::new();
+    for r in sqlx::query(&sql).bind(sweep).fetch_all(db).await? {
+        let v: f64 = r.try_get("value")?;
+        if v.is_finite() {
+            by_cell
+                .entry(r.try_get("cell_id")?)
+                .or_default()
+                .entry(r.try_get("name")?)
+                .or_default()
+                .push((r.try_get::<i64, _>("epoch")? as u32, v));
+        }
+    }
+    for c in &mut data.cells {
+        c.curves = by_cell.remove(&c.id).unwrap_or_default();
+    }
+
+    let mut latest: BTreeMap<String, Promotion> = BTreeMap::new();
+    for r in sqlx::query("SELECT terrain, cell_id, score FROM promotions WHERE sweep_id = ? ORDER BY id")
+        .bind(sweep)
+        .fetch_all(db)
+        .await?
+    {
+        let p = Promotion { terrain: r.try_get("terrain")?, cell_id: r.try_get("cell_id")?, score: r.try_get("score")? };
+        latest.insert(p.terrain.clone(), p);
+    }
+    data.promotions = latest.into_values().collect();
+    fill_axes(&mut data);
+    Ok(data)
+}
+
+/// Fills terrains and grid values the spec did not give from the cells themselves.
+fn fill_axes(d: &mut ReportData) {
+    let n_t = d.cells.iter().map(|c| c.terrain_index + 1).max().unwrap_or(0);
+    if d.terrains.len() < n_t {
+        d.terrains.resize(n_t, String::new());
+    }
+    let n1 = d.cells.iter().map(|c| c.w1_index + 1).max().unwrap_or(0);
+    let n2 = d.cells.iter().map(|c| c.w2_index + 1).max().unwrap_or(0);
+    if d.w1_values.len() < n1 {
+        d.w1_values.resize(n1, f64::NAN);
+    }
+    if d.w2_values.len() < n2 {
+        d.w2_values.resize(n2, f64::NAN);
+    }
+    for c in &d.cells {
+        if d.terrains[c.terrain_index].is_empty() {
+            d.terrains[c.terrain_index] = c.terrain.clone();
+        }
+        if d.w1_values[c.w1_index].is_nan() {
+            d.w1_values[c.w1_index] = c.w1;
+        }
+        if d.w2_values[c.w2_index].is_nan() {
+            d.w2_values[c.w2_index] = c.w2;
+        }
+    }
+}
+
+/// What happened to the gait GIF.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GifStatus {
+    /// Written under this file name in the output dir.
+    Written(String),
+    /// Not made, and why (shown in index.html).
+    NotMade(String),
+}
+
+/// The files a report wrote.
+#[derive(Debug, Clone, Default)]
+pub struct ReportFiles {
+    /// Every picture, page and GIF written, in the output dir.
+    pub files: Vec<PathBuf>,
+}
+
+/// Draws every picture of `data` into `out` and writes `index.html` (with `gif` as the
+/// gait section).
+pub fn write_report(data: &ReportData, out: &Path, gif: &GifStatus) -> anyhow::Result<ReportFiles> {
+    std::fs::create_dir_all(out).with_context(|| format!("create {}", out.display()))?;
+    let mut files = plots::draw_all(data, out)?;
+    let index = out.join("index.html");
+    std::fs::write(&index, html::index(data, &files, gif)).with_context(|| format!("write {}", index.display()))?;
+    files.push(index);
+    Ok(ReportFiles { files })
+}
+
+/// Safe file-name part for a terrain.
+pub fn slug(s: &str) -> String {
+    let s: String = s.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '_' }).collect();
+    if s.is_empty() { "terrain".into() } else { s }
+}
+
+/// `coordinator report`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ReportArgs {
+    /// Sweep id.
+    pub sweep: i64,
+    /// The coordinator's data dir (holds gaitsweep.sqlite and the checkpoints).
+    #[arg(long)]
+    pub data_dir: PathBuf,
+    /// Output directory of the report.
+    #[arg(long, default_value = "report")]
+    pub out: PathBuf,
+    /// The `worker` binary that renders the gait GIF (default: next to this executable).
+    #[arg(long)]
+    pub worker: Option<PathBuf>,
+    /// Do not render the gait GIF.
+    #[arg(long)]
+    pub no_gif: bool,
+    /// Seconds of walking in the gait GIF.
+    #[arg(long, default_value_t = 6.0)]
+    pub gif_seconds: f32,
+}
+
+/// Runs `coordinator report`.
+pub async fn run(a: ReportArgs) -> anyhow::Result<()> {
+    let db = open_db(&a.data_dir).await?;
+    let data = load(&db, a.sweep).await?;
+    db.close().await;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("create {}", a.out.display()))?;
+    let gif = if a.no_gif {
+        GifStatus::NotMade("not rendered (--no-gif)".into())
+    } else {
+        render_gif(&data, &a).await
+    };
+    match &gif {
+        GifStatus::Written(f) => tracing::info!(file = %a.out.join(f).display(), "gait GIF written"),
+        GifStatus::NotMade(why) => tracing::warn!("no gait GIF: {why}"),
+    }
+    let files = write_report(&data, &a.out, &gif)?;
+    let done = data.cells.iter().filter(|c| c.score.is_some()).count();
+    println!(
+        "report of sweep {} ({} of {} cells scored): {} files in {}; open {}",
+        data.sweep_id,
+        done,
+        data.cells.len(),
+        files.files.len(),
+        a.out.display(),
+        a.out.join("index.html").display()
+    );
+    Ok(())
+}
+
+/// The `worker` binary next to this executable.
+pub fn sibling_worker() -> Option<PathBuf> {
+    let exe = std::env::current_exe().ok()?;
+    let p = exe.parent()?.join(if cfg!(windows) { "worker.exe" } else { "worker" });
+    p.is_file().then_some(p)
+}
+
+/// Renders the promoted cell's checkpoint with `worker render`; never fails the report.
+async fn render_gif(data: &ReportData, a: &ReportArgs) -> GifStatus {
+    let Some(best) = data.promoted() else {
+        return GifStatus::NotMade("no cell has a score yet, so there is no promoted policy to render".into());
+    };
+    let Some(rel) = &best.checkpoint else {
+        return GifStatus::NotMade(format!("the promoted cell {} has no checkpoint in the database", best.id));
+    };
+    let ckpt = a.data_dir.join(rel);
+    if !ckpt.is_file() {
+        return GifStatus::NotMade(format!("the promoted cell's checkpoint {} is missing", ckpt.display()));
+    }
+    let worker = match a.worker.clone().or_else(sibling_worker) {
+        Some(w) if w.is_file() => w,
+        Some(w) => return GifStatus::NotMade(format!("the worker binary {} does not exist", w.display())),
+        None => {
+            let dir = std::env::current_exe().ok().and_then(|e| e.parent().map(Path::to_path_buf)).unwrap_or_default();
+            return GifStatus::NotMade(format!(
+                "the worker binary was not found next to the coordinator (in {}); build it or pass --worker PATH, then run `worker render --checkpoint {} --out gait.gif`",
+                dir.display(),
+                ckpt.display()
+            ));
+        }
+    };
+    let name = "gait.gif";
+    let mut cmd = tokio::process::Command::new(&worker);
+    cmd.arg("render")
+        .arg("--checkpoint")
+        .arg(&ckpt)
+        .arg("--out")
+        .arg(a.out.join(name))
+        .arg("--terrain")
+        .arg(&best.terrain)
+        .arg("--seconds")
+        .arg(a.gif_seconds.to_string());
+    if let Some(d) = data.difficulty {
+        cmd.arg("--difficulty").arg(d.to_string());
+    }
+    tracing::info!(worker = %worker.display(), checkpoint = %ckpt.display(), cell = best.id, "rendering the promoted policy's gait");
+    match cmd.kill_on_drop(true).output().await {
+        Ok(o) if o.status.success() && a.out.join(name).is_file() => GifStatus::Written(name.into()),
+        Ok(o) => {
+            let err = String::from_utf8_lossy(&o.stderr);
+            let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim().to_string();
+            GifStatus::NotMade(format!("`{} render` failed ({}): {last}", worker.display(), o.status))
+        }
+        Err(e) => GifStatus::NotMade(format!("could not run {}: {e}", worker.display())),
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,271 @@
+//! Report tests: every picture is drawn from a synthetic sweep into a temp dir and checked
+//! to be a whole PNG / SVG; a sweep written through the coordinator's own store is loaded
+//! back and reported.
+
+use super::*;
+use crate::store::{SqliteStore, Store, WorkerInfo};
+use gaitsweep_core::records::CheckpointRecord;
+use gaitsweep_core::{ResolvedSpec, WorkerId};
+use gaitsweep_sim::TerrainKind;
+
+fn score(v: f64) -> GaitScore {
+    GaitScore {
+        score: v,
+        track: 0.5 + v / 4.0,
+        effort: 0.2 - v / 10.0,
+        tilt: 0.05,
+        progress: v.max(0.0),
+        fall_rate: 0.0,
+        mean_vel_error: 0.3,
+        mean_abs_torque: 5.0,
+        cost_of_transport: 1.2,
+        robots: 4,
+    }
+}
+
+/// A 3 x 4 grid on two terrains; one cell still running, one failed, one NaN score.
+fn synthetic() -> ReportData {
+    let w1 = vec![2.0, 7.0, 12.0];
+    let w2 = vec![-10.0, -7.33, -4.67, -2.0];
+    let terrains = vec!["flat".to_string(), "rough".to_string()];
+    let mut cells = Vec::new();
+    let mut id = 1;
+    for (t, terrain) in terrains.iter().enumerate() {
+        for (i, a) in w1.iter().enumerate() {
+            for (j, b) in w2.iter().enumerate() {
+                let v = 0.1 * i as f64 - 0.05 * (j as f64 - 1.5).powi(2) + 0.02 * t as f64;
+                let (state, s) = match (t, i, j) {
+                    (0, 0, 3) => ("running", None),
+                    (1, 2, 0) => ("failed", None),
+                    (1, 0, 0) => ("done", Some(score(f64::NAN))),
+                    _ => ("done", Some(score(v))),
+                };
+                let curves = BTreeMap::from([
+                    ("mean_step_reward".to_string(), (1..=20).map(|e| (e, v + 0.01 * e as f64)).collect()),
+                    ("mean_return".to_string(), (1..=20).map(|e| (e, 10.0 * v + 0.3 * e as f64)).collect()),
+                ]);
+                cells.push(ReportCell {
+                    id,
+                    terrain_index: t,
+                    terrain: terrain.clone(),
+                    w1_index: i,
+                    w2_index: j,
+                    w1: *a,
+                    w2: *b,
+                    state: state.into(),
+                    attempts: 1,
+                    epochs_done: 20,
+                    last_error: (state == "failed").then(|| "worker <gone>".to_string()),
+                    score: s,
+                    checkpoint: Some(format!("checkpoints/{id}.safetensors")),
+                    curves,
+                });
+                id += 1;
+            }
+        }
+    }
+    ReportData {
+        sweep_id: 7,
+        name: "synthetic".into(),
+        robot: "anymal".into(),
+        state: "running".into(),
+        difficulty: Some(3),
+        terrains,
+        w1_values: w1,
+        w2_values: w2,
+        cells,
+        promotions: vec![],
+    }
+}
+
+/// Checks a PNG's signature, its IHDR size and that it ends with IEND.
+fn assert_png(path: &Path, min_w: u32, min_h: u32) {
+    let b = std::fs::read(path).unwrap_or_else(|e| panic!("read {}: {e}", path.display()));
+    assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n", "{} is not a PNG", path.display());
+    assert_eq!(&b[12..16], b"IHDR");
+    let w = u32::from_be_bytes(b[16..20].try_into().unwrap());
+    let h = u32::from_be_bytes(b[20..24].try_into().unwrap());
+    assert!(w >= min_w && h >= min_h, "{}: {w}x{h}", path.display());
+    assert_eq!(&b[b.len() - 8..b.len() - 4], b"IEND", "{} is truncated", path.display());
+    assert!(b.len() > 5000, "{} is suspiciously small ({} bytes)", path.display(), b.len());
+}
+
+fn assert_svg(path: &Path, must_contain: &[&str]) {
+    let s = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("read {}: {e}", path.display()));
+    assert!(s.starts_with("<svg") && s.trim_end().ends_with("</svg>"), "{} is not a whole SVG", path.display());
+    for m in must_contain {
+        assert!(s.contains(m), "{} lacks {m:?}", path.display());
+    }
+}
+
+#[test]
+fn best_and_overlap_follow_the_scores() {
+    let d = synthetic();
+    let best = d.best_cell(None).unwrap();
+    assert_eq!((best.terrain_index, best.w1_index), (1, 2), "the highest score is on rough, w1 = 12");
+    assert_eq!(d.promoted().unwrap().id, best.id, "without promotions the best cell is promoted");
+    let (cells, count) = d.overlap();
+    assert!(!cells.is_empty());
+    for &(i, j) in &cells {
+        assert_eq!(count[i][j], Some(2.0));
+        for t in 0..2 {
+            let c = d.cells_of(t).find(|c| c.w1_index == i && c.w2_index == j).unwrap();
+            assert!(c.value().is_some(), "overlap cells are scored on every terrain");
+        }
+    }
+    // the cell failed on rough is never in the overlap
+    assert!(!cells.contains(&(2, 0)));
+}
+
+#[test]
+fn every_picture_is_a_whole_png_and_svg() {
+    let d = synthetic();
+    let dir = tempfile::tempdir().unwrap();
+    let gif = GifStatus::NotMade("the worker binary was not found".into());
+    let files = write_report(&d, dir.path(), &gif).unwrap().files;
+    // GAITSWEEP_KEEP_REPORT=DIR keeps a copy to look at.
+    if let Some(keep) = std::env::var_os("GAITSWEEP_KEEP_REPORT") {
+        write_report(&d, Path::new(&keep), &gif).unwrap();
+    }
+    let mut stems = vec!["overlap".to_string()];
+    for t in ["flat", "rough"] {
+        for p in ["score", "surface", "track", "effort", "tilt", "progress", "curves"] {
+            stems.push(format!("{p}_{t}"));
+        }
+    }
+    for s in &stems {
+        let png = dir.path().join(format!("{s}.png"));
+        assert!(files.contains(&png), "{s}.png listed");
+        assert_png(&png, 700, 500);
+        let svg = dir.path().join(format!("{s}.svg"));
+        assert!(files.contains(&svg), "{s}.svg listed");
+    }
+    assert_svg(&dir.path().join("score_flat.svg"), &["log10 torque weight w2", "w1 (tracking weight)", "gait score", "best"]);
+    assert_svg(&dir.path().join("effort_rough.svg"), &["best (lowest)"]);
+    assert_svg(&dir.path().join("overlap.svg"), &["all terrains", "top quartile"]);
+    assert_svg(&dir.path().join("curves_flat.svg"), &["epoch", "mean reward per step", "w1 12, w2 -2"]);
+    let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
+    for needle in ["score_flat.png", "surface_rough.png", "overlap.png", "curves_rough.png", "the worker binary was not found", "worker &lt;gone&gt;", "class=\"best\""] {
+        assert!(html.contains(needle), "index.html lacks {needle:?}");
+    }
+    assert_eq!(html.matches("<tr").count(), d.cells.len() + 1, "one table row per cell");
+}
+
+#[test]
+fn pictures_render_text_with_the_embedded_font() {
+    // Text must change many pixels: a PNG with text compresses far worse than a blank one,
+    // which is what plotters draws when no font is available.
+    use plotters::prelude::*;
+    register_fonts();
+    let dir = tempfile::tempdir().unwrap();
+    let draw = |name: &str, text: &str| {
+        let path = dir.path().join(name);
+        let root = BitMapBackend::new(&path, (300, 60)).into_drawing_area();
+        root.fill(&WHITE).unwrap();
+        root.draw(&Text::new(text.to_string(), (5, 10), ("sans-serif", 30).into_font())).unwrap();
+        root.present().unwrap();
+        drop(root);
+        std::fs::metadata(&path).unwrap().len()
+    };
+    let blank = draw("blank.png", "");
+    let text = draw("text.png", "w1 log10 \u{2605} 0.123");
+    assert!(text > blank + 800, "text was drawn: {text} bytes vs {blank} blank");
+}
+
+#[test]
+fn an_empty_sweep_still_gets_a_report() {
+    let mut d = synthetic();
+    for c in &mut d.cells {
+        c.score = None;
+        c.state = "queued".into();
+        c.curves.clear();
+    }
+    let dir = tempfile::tempdir().unwrap();
+    write_report(&d, dir.path(), &GifStatus::NotMade("no cell has a score yet".into())).unwrap();
+    assert_png(&dir.path().join("score_flat.png"), 700, 500);
+    let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
+    assert!(html.contains("nothing is promoted"));
+}
+
+fn spec() -> ResolvedSpec {
+    ResolvedSpec {
+        name: "store".into(),
+        robot: "anymal".into(),
+        terrains: vec![TerrainKind::Flat, TerrainKind::Stairs],
+        difficulty: Some(2),
+        w1_values: vec![2.0, 12.0],
+        w2_values: vec![-6.0, -4.0, -2.0],
+        agents_per_cell: 2,
+        epochs: 3,
+        checkpoint_every: 1,
+        seed: 1,
+        ppo_overrides: Default::default(),
+        eval_robots: 0,
+        eval_seconds: 0.0,
+    }
+}
+
+#[tokio::test]
+async fn a_sweep_stored_by_the_coordinator_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = SqliteStore::open(&dir.path().join(DB_FILE)).await.unwrap();
+    let w = WorkerId("w".into());
+    let info = WorkerInfo { hostname: "h".into(), cores: 2, device: "cpu".into(), slots: 1, version: "t".into() };
+    store.register_worker(&w, &info, 0).await.unwrap();
+    let sweep = store.create_sweep(&spec(), 0).await.unwrap();
+    let mut k = 0.0;
+    // all cells but the last get a score, metrics and a checkpoint
+    while let Some(g) = store.lease_next(&w, 0, 1).await.unwrap() {
+        k += 1.0;
+        if k > 11.0 {
+            break;
+        }
+        let ck = CheckpointRecord { sha256: format!("{:064x}", g.lease.0), size: 10, epoch: 3 };
+        let rel = format!("checkpoints/{}.safetensors", ck.sha256);
+        store.record_checkpoint(g.lease, &ck, &rel, 2).await.unwrap();
+        let epochs: Vec<(u32, BTreeMap<String, f64>)> = (1..=3)
+            .map(|e| (e, BTreeMap::from([("mean_step_reward".to_string(), k * 0.01 + e as f64 * 0.1), ("mean_return".to_string(), k + e as f64), ("kl".to_string(), 0.01)])))
+            .collect();
+        store.record_progress(g.lease, &epochs).await.unwrap();
+        store.report_result(g.lease, &score(k / 10.0), 3, Some(&ck.sha256), 3).await.unwrap();
+    }
+    let db = open_db(dir.path()).await.unwrap();
+    let d = load(&db, sweep.id.0).await.unwrap();
+    assert_eq!(d.terrains, vec!["flat", "stairs"]);
+    assert_eq!(d.w1_values, vec![2.0, 12.0]);
+    assert_eq!(d.w2_values, vec![-6.0, -4.0, -2.0]);
+    assert_eq!(d.difficulty, Some(2));
+    assert_eq!(d.cells.len(), 12);
+    assert_eq!(d.cells.iter().filter(|c| c.score.is_some()).count(), 11);
+    let best = d.promoted().expect("a promoted cell");
+    assert_eq!(best.value(), Some(1.1), "the stored promotion is the best score");
+    assert!(d.promotions.iter().any(|p| p.terrain.is_empty() && p.cell_id == best.id));
+    assert!(best.checkpoint.as_deref().unwrap().starts_with("checkpoints/"));
+    let c = d.cells.iter().find(|c| c.score.is_some()).unwrap();
+    assert_eq!(c.curves["mean_step_reward"].len(), 3);
+    assert!(!c.curves.contains_key("kl"), "only curve metrics are loaded");
+    assert!(d.load_missing_sweep_is_an_error(&db).await);
+
+    // the whole command, with no worker binary: the report says so instead of failing
+    let out = dir.path().join("report");
+    run(ReportArgs {
+        sweep: sweep.id.0,
+        data_dir: dir.path().to_path_buf(),
+        out: out.clone(),
+        worker: Some(dir.path().join("no-such-worker")),
+        no_gif: false,
+        gif_seconds: 1.0,
+    })
+    .await
+    .unwrap();
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    assert!(html.contains("No gait GIF"), "{html}");
+    assert_png(&out.join("score_stairs.png"), 700, 500);
+    assert_png(&out.join("overlap.png"), 700, 500);
+}
+
+impl ReportData {
+    async fn load_missing_sweep_is_an_error(&self, db: &sqlx::SqlitePool) -> bool {
+        load(db, self.sweep_id + 1000).await.is_err()
+    }
+}

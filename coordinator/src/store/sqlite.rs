@@ -1,0 +1,627 @@
+//! The SQLite implementation of [`Store`]: WAL, one writer connection whose transactions
+//! start with `BEGIN IMMEDIATE` (so they never fail on a busy snapshot), a pool of readers.
+
+use super::{AttemptEnd, AttemptOutcome, LeaseGrant, ResultOutcome, RunningLease, Store, WorkerInfo};
+use crate::sched::{self, Candidate};
+use crate::{Error, Result};
+use gaitsweep_core::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
+use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, SweepId, SweepState, WorkerId};
+use gaitsweep_sim::GaitScore;
+use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous};
+use sqlx::{Row, Sqlite, SqlitePool, Transaction};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::str::FromStr;
+use std::time::Duration;
+
+/// The embedded migrations of `migrations/`.
+pub static MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("../migrations");
+
+/// SQLite storage in one database file.
+#[derive(Clone)]
+pub struct SqliteStore {
+    write: SqlitePool,
+    read: SqlitePool,
+}
+
+type Tx = Transaction<'static, Sqlite>;
+
+const CELL_COLUMNS: &str = "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, \
+     c.seed, c.state, c.attempts, c.epochs_done, c.last_error, s.score, s.track, s.effort, s.tilt, \
+     s.progress, s.fall_rate, s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots";
+
+const SWEEP_COLUMNS: &str = "w.id, w.spec_json, w.state, w.created_unix_ms, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id) AS total, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'queued') AS queued, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'running') AS running, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'done') AS done, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'failed') AS failed, \
+     (SELECT p.cell_id FROM promotions p WHERE p.sweep_id = w.id AND p.terrain = '' ORDER BY p.id DESC LIMIT 1) AS best";
+
+impl SqliteStore {
+    /// Opens (creating if needed) the database file and applies the migrations.
+    pub async fn open(path: &Path) -> Result<Self> {
+        let opts = SqliteConnectOptions::new()
+            .filename(path)
+            .create_if_missing(true)
+            .journal_mode(SqliteJournalMode::Wal)
+            .synchronous(SqliteSynchronous::Normal)
+            .foreign_keys(true)
+            .busy_timeout(Duration::from_secs(10));
+        let write = SqlitePoolOptions::new().max_connections(1).connect_with(opts.clone()).await?;
+        MIGRATOR.run(&write).await?;
+        let read = SqlitePoolOptions::new().max_connections(4).connect_with(opts.read_only(true)).await?;
+        Ok(Self { write, read })
+    }
+
+    async fn begin(&self) -> Result<Tx> {
+        Ok(self.write.begin_with("BEGIN IMMEDIATE").await?)
+    }
+}
+
+fn cell_from_row(r: &SqliteRow) -> Result<CellRecord> {
+    let score: Option<f64> = r.try_get("score")?;
+    let score = match score {
+        Some(score) => Some(GaitScore {
+            score,
+            track: r.try_get("track")?,
+            effort: r.try_get("effort")?,
+            tilt: r.try_get("tilt")?,
+            progress: r.try_get("progress")?,
+            fall_rate: r.try_get("fall_rate")?,
+            mean_vel_error: r.try_get("mean_vel_error")?,
+            mean_abs_torque: r.try_get("mean_abs_torque")?,
+            cost_of_transport: r.try_get("cost_of_transport")?,
+            robots: r.try_get::<i64, _>("robots")? as usize,
+        }),
+        None => None,
+    };
+    Ok(CellRecord {
+        id: CellId(r.try_get("id")?),
+        sweep_id: SweepId(r.try_get("sweep_id")?),
+        terrain_index: r.try_get::<i64, _>("terrain_index")? as u32,
+        terrain: r.try_get("terrain")?,
+        w1_index: r.try_get::<i64, _>("w1_index")? as u32,
+        w2_index: r.try_get::<i64, _>("w2_index")? as u32,
+        w1: r.try_get("w1")?,
+        w2: r.try_get("w2")?,
+        seed: r.try_get::<i64, _>("seed")? as u64,
+        state: CellState::from_str(r.try_get("state")?)?,
+        attempts: r.try_get::<i64, _>("attempts")? as u32,
+        epochs_done: r.try_get::<i64, _>("epochs_done")? as u32,
+        score,
+        last_error: r.try_get("last_error")?,
+    })
+}
+
+fn sweep_from_row(r: &SqliteRow) -> Result<SweepRecord> {
+    let spec: ResolvedSpec = serde_json::from_str(r.try_get("spec_json")?)?;
+    let n = |name: &str| -> Result<u32> { Ok(r.try_get::<i64, _>(name)? as u32) };
+    Ok(SweepRecord {
+        id: SweepId(r.try_get("id")?),
+        spec,
+        state: SweepState::from_str(r.try_get("state")?)?,
+        created_unix_ms: r.try_get("created_unix_ms")?,
+        cells_total: n("total")?,
+        cells_queued: n("queued")?,
+        cells_running: n("running")?,
+        cells_done: n("done")?,
+        cells_failed: n("failed")?,
+        best_cell: r.try_get::<Option<i64>, _>("best")?.map(CellId),
+    })
+}
+
+async fn cell_tx(tx: &mut Tx, id: CellId) -> Result<CellRecord> {
+    let sql = format!("SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.id = ?");
+    let row = sqlx::query(&sql).bind(id.0).fetch_optional(&mut **tx).await?;
+    cell_from_row(&row.ok_or(Error::UnknownCell(id))?)
+}
+
+async fn sweep_tx(tx: &mut Tx, id: SweepId) -> Result<SweepRecord> {
+    let sql = format!("SELECT {SWEEP_COLUMNS} FROM sweeps w WHERE w.id = ?");
+    let row = sqlx::query(&sql).bind(id.0).fetch_optional(&mut **tx).await?;
+    sweep_from_row(&row.ok_or(Error::UnknownSweep(id))?)
+}
+
+/// The cell and its state for a lease id.
+async fn lease_cell(tx: &mut Tx, lease: LeaseId) -> Result<(CellId, SweepId, CellState, String)> {
+    let row = sqlx::query(
+        "SELECT a.cell_id, c.sweep_id, c.state, a.state AS attempt_state FROM attempts a \
+         JOIN cells c ON c.id = a.cell_id WHERE a.id = ?",
+    )
+    .bind(lease.0)
+    .fetch_optional(&mut **tx)
+    .await?
+    .ok_or(Error::UnknownLease(lease))?;
+    Ok((
+        CellId(row.try_get("cell_id")?),
+        SweepId(row.try_get("sweep_id")?),
+        CellState::from_str(row.try_get("state")?)?,
+        row.try_get("attempt_state")?,
+    ))
+}
+
+fn refuse_closed(cell: CellId, state: CellState) -> Result<()> {
+    if matches!(state, CellState::Done | CellState::Cancelled) {
+        return Err(Error::CellClosed { cell, state: state.to_string() });
+    }
+    Ok(())
+}
+
+/// Marks the sweep done if no cell is open any more; returns it if so.
+async fn finish_if_done(tx: &mut Tx, sweep: SweepId, now_ms: i64) -> Result<Option<SweepRecord>> {
+    let open: i64 = sqlx::query_scalar(
+        "SELECT COUNT(*) FROM cells WHERE sweep_id = ? AND state IN ('queued', 'running')",
+    )
+    .bind(sweep.0)
+    .fetch_one(&mut **tx)
+    .await?;
+    if !sched::sweep_finished(open as u32) {
+        return Ok(None);
+    }
+    let changed = sqlx::query("UPDATE sweeps SET state = 'done', finished_unix_ms = ? WHERE id = ? AND state = 'running'")
+        .bind(now_ms)
+        .bind(sweep.0)
+        .execute(&mut **tx)
+        .await?
+        .rows_affected();
+    if changed == 0 {
+        return Ok(None);
+    }
+    Ok(Some(sweep_tx(tx, sweep).await?))
+}
+
+async fn checkpoint_of(ex: &mut Tx, sha: Option<String>, epoch: Option<i64>) -> Result<Option<CheckpointRecord>> {
+    let Some(sha) = sha else { return Ok(None) };
+    let size: Option<i64> = sqlx::query_scalar("SELECT size FROM checkpoints WHERE sha256 = ?")
+        .bind(&sha)
+        .fetch_optional(&mut **ex)
+        .await?;
+    Ok(size.map(|size| CheckpointRecord { sha256: sha, size: size as u64, epoch: epoch.unwrap_or(0) as u32 }))
+}
+
+/// Promotes `cell` over all terrains and on its terrain if it beats the current best.
+async fn promote(tx: &mut Tx, cell: &CellRecord, score: f64, final_ckpt: Option<CheckpointRecord>, now_ms: i64) -> Result<Vec<PromotionRecord>> {
+    let mut out = Vec::new();
+    for terrain in ["", cell.terrain.as_str()] {
+        let best: Option<(i64, f64)> = sqlx::query_as(
+            "SELECT cell_id, score FROM promotions WHERE sweep_id = ? AND terrain = ? ORDER BY id DESC LIMIT 1",
+        )
+        .bind(cell.sweep_id.0)
+        .bind(terrain)
+        .fetch_optional(&mut **tx)
+        .await?;
+        if sched::beats((cell.id, score), best.map(|(c, s)| (CellId(c), s))) {
+            sqlx::query("INSERT INTO promotions (sweep_id, terrain, cell_id, score, promoted_unix_ms) VALUES (?, ?, ?, ?, ?)")
+                .bind(cell.sweep_id.0)
+                .bind(terrain)
+                .bind(cell.id.0)
+                .bind(score)
+                .bind(now_ms)
+                .execute(&mut **tx)
+                .await?;
+            out.push(PromotionRecord {
+                sweep_id: cell.sweep_id,
+                terrain: (!terrain.is_empty()).then(|| terrain.to_string()),
+                cell: cell.clone(),
+                checkpoint: final_ckpt.clone(),
+                promoted_unix_ms: now_ms,
+            });
+        }
+    }
+    Ok(out)
+}
+
+impl Store for SqliteStore {
+    async fn create_sweep(&self, spec: &ResolvedSpec, now_ms: i64) -> Result<SweepRecord> {
+        let mut tx = self.begin().await?;
+        let id: i64 = sqlx::query_scalar(
+            "INSERT INTO sweeps (name, robot, spec_json, state, created_unix_ms) VALUES (?, ?, ?, 'running', ?) RETURNING id",
+        )
+        .bind(&spec.name)
+        .bind(&spec.robot)
+        .bind(serde_json::to_string(spec)?)
+        .bind(now_ms)
+        .fetch_one(&mut *tx)
+        .await?;
+        for c in spec.cells() {
+            sqlx::query(
+                "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, seed, state) \
+                 VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'queued')",
+            )
+            .bind(id)
+            .bind(c.terrain_index as i64)
+            .bind(c.terrain.to_string())
+            .bind(c.w1_index as i64)
+            .bind(c.w2_index as i64)
+            .bind(c.w1)
+            .bind(c.w2)
+            .bind(c.seed as i64)
+            .execute(&mut *tx)
+            .await?;
+        }
+        let rec = sweep_tx(&mut tx, SweepId(id)).await?;
+        tx.commit().await?;
+        Ok(rec)
+    }
+
+    async fn list_sweeps(&self) -> Result<Vec<SweepRecord>> {
+        let sql = format!("SELECT {SWEEP_COLUMNS} FROM sweeps w ORDER BY w.id DESC");
+        sqlx::query(&sql).fetch_all(&self.read).await?.iter().map(sweep_from_row).collect()
+    }
+
+    async fn sweep(&self, id: SweepId) -> Result<SweepRecord> {
+        let sql = format!("SELECT {SWEEP_COLUMNS} FROM sweeps w WHERE w.id = ?");
+        let row = sqlx::query(&sql).bind(id.0).fetch_optional(&self.read).await?;
+        sweep_from_row(&row.ok_or(Error::UnknownSweep(id))?)
+    }
+
+    async fn cells(&self, id: SweepId) -> Result<Vec<CellRecord>> {
+        self.sweep(id).await?;
+        let sql = format!(
+            "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = ? \
+             ORDER BY c.terrain_index, c.w1_index, c.w2_index"
+        );
+        sqlx::query(&sql).bind(id.0).fetch_all(&self.read).await?.iter().map(cell_from_row).collect()
+    }
+
+    async fn cancel_sweep(&self, id: SweepId, now_ms: i64) -> Result<(SweepRecord, Vec<LeaseId>)> {
+        let mut tx = self.begin().await?;
+        sweep_tx(&mut tx, id).await?;
+        let leases: Vec<i64> = sqlx::query_scalar(
+            "SELECT a.id FROM attempts a JOIN cells c ON c.id = a.cell_id WHERE c.sweep_id = ? AND a.state = 'running'",
+        )
+        .bind(id.0)
+        .fetch_all(&mut *tx)
+        .await?;
+        sqlx::query("UPDATE sweeps SET state = 'cancelled', finished_unix_ms = ? WHERE id = ? AND state = 'running'")
+            .bind(now_ms)
+            .bind(id.0)
+            .execute(&mut *tx)
+            .await?;
+        sqlx::query("UPDATE cells SET state = 'cancelled' WHERE sweep_id = ? AND state IN ('queued', 'running')")
+            .bind(id.0)
+            .execute(&mut *tx)
+            .await?;
+        sqlx::query(
+            "UPDATE attempts SET state = 'cancelled', ended_unix_ms = ? WHERE state = 'running' \
+             AND cell_id IN (SELECT id FROM cells WHERE sweep_id = ?)",
+        )
+        .bind(now_ms)
+        .bind(id.0)
+        .execute(&mut *tx)
+        .await?;
+        let rec = sweep_tx(&mut tx, id).await?;
+        tx.commit().await?;
+        Ok((rec, leases.into_iter().map(LeaseId).collect()))
+    }
+
+    async fn register_worker(&self, id: &WorkerId, info: &WorkerInfo, now_ms: i64) -> Result<()> {
+        let mut tx = self.begin().await?;
+        sqlx::query(
+            "INSERT INTO workers (id, hostname, cores, device, slots, version, registered_unix_ms, last_seen_unix_ms) \
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+        )
+        .bind(&id.0)
+        .bind(&info.hostname)
+        .bind(info.cores as i64)
+        .bind(&info.device)
+        .bind(info.slots as i64)
+        .bind(&info.version)
+        .bind(now_ms)
+        .bind(now_ms)
+        .execute(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok(())
+    }
+
+    async fn touch_workers(&self, ids: &[WorkerId], now_ms: i64) -> Result<()> {
+        if ids.is_empty() {
+            return Ok(());
+        }
+        let mut tx = self.begin().await?;
+        for id in ids {
+            sqlx::query("UPDATE workers SET last_seen_unix_ms = ? WHERE id = ?")
+                .bind(now_ms)
+                .bind(&id.0)
+                .execute(&mut *tx)
+                .await?;
+        }
+        tx.commit().await?;
+        Ok(())
+    }
+
+    async fn lease_next(&self, worker: &WorkerId, slot: u32, now_ms: i64) -> Result<Option<LeaseGrant>> {
+        let mut tx = self.begin().await?;
+        let known: Option<i64> = sqlx::query_scalar("SELECT 1 FROM workers WHERE id = ?")
+            .bind(&worker.0)
+            .fetch_optional(&mut *tx)
+            .await?;
+        if known.is_none() {
+            return Err(Error::UnknownWorker(worker.0.clone()));
+        }
+        let heads: Vec<(i64, i64)> = sqlx::query_as(
+            "SELECT MIN(c.id), c.sweep_id FROM cells c JOIN sweeps w ON w.id = c.sweep_id \
+             WHERE c.state = 'queued' AND w.state = 'running' GROUP BY c.sweep_id",
+        )
+        .fetch_all(&mut *tx)
+        .await?;
+        if heads.is_empty() {
+            return Ok(None);
+        }
+        let running: BTreeMap<i64, i64> = sqlx::query_as::<_, (i64, i64)>(
+            "SELECT sweep_id, COUNT(*) FROM cells WHERE state = 'running' GROUP BY sweep_id",
+        )
+        .fetch_all(&mut *tx)
+        .await?
+        .into_iter()
+        .collect();
+        let candidates: Vec<Candidate> = heads
+            .iter()
+            .map(|&(cell, sweep)| Candidate {
+                cell: CellId(cell),
+                sweep: SweepId(sweep),
+                running: running.get(&sweep).copied().unwrap_or(0) as u32,
+            })
+            .collect();
+        let Some(cell_id) = sched::pick_next(&candidates) else { return Ok(None) };
+        let (sha, epoch): (Option<String>, Option<i64>) = sqlx::query_as(
+            "SELECT last_checkpoint_sha256, last_checkpoint_epoch FROM cells WHERE id = ?",
+        )
+        .bind(cell_id.0)
+        .fetch_one(&mut *tx)
+        .await?;
+        let resume = checkpoint_of(&mut tx, sha, epoch).await?;
+        let lease: i64 = sqlx::query_scalar(
+            "INSERT INTO attempts (cell_id, worker_id, slot, state, resumed_from_epoch, started_unix_ms) \
+             VALUES (?, ?, ?, 'running', ?, ?) RETURNING id",
+        )
+        .bind(cell_id.0)
+        .bind(&worker.0)
+        .bind(slot as i64)
+        .bind(resume.as_ref().map_or(0, |c| c.epoch as i64))
+        .bind(now_ms)
+        .fetch_one(&mut *tx)
+        .await?;
+        sqlx::query("UPDATE cells SET state = 'running', attempts = attempts + 1 WHERE id = ?")
+            .bind(cell_id.0)
+            .execute(&mut *tx)
+            .await?;
+        let cell = cell_tx(&mut tx, cell_id).await?;
+        let spec_json: String = sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = ?")
+            .bind(cell.sweep_id.0)
+            .fetch_one(&mut *tx)
+            .await?;
+        tx.commit().await?;
+        Ok(Some(LeaseGrant { lease: LeaseId(lease), cell, spec: serde_json::from_str(&spec_json)?, resume }))
+    }
+
+    async fn running_leases(&self) -> Result<Vec<RunningLease>> {
+        let rows: Vec<(i64, i64, i64, String)> = sqlx::query_as(
+            "SELECT a.id, a.cell_id, c.sweep_id, a.worker_id FROM attempts a JOIN cells c ON c.id = a.cell_id \
+             WHERE a.state = 'running'",
+        )
+        .fetch_all(&self.read)
+        .await?;
+        Ok(rows
+            .into_iter()
+            .map(|(l, c, s, w)| RunningLease { lease: LeaseId(l), cell: CellId(c), sweep: SweepId(s), worker: WorkerId(w) })
+            .collect())
+    }
+
+    async fn open_lease(&self, lease: LeaseId) -> Result<(CellId, SweepId)> {
+        let mut tx = self.read.begin().await?;
+        let (cell, sweep, state, _) = lease_cell(&mut tx, lease).await?;
+        refuse_closed(cell, state)?;
+        Ok((cell, sweep))
+    }
+
+    async fn record_progress(&self, lease: LeaseId, epochs: &[(u32, BTreeMap<String, f64>)]) -> Result<(usize, CellId, SweepId)> {
+        let mut tx = self.begin().await?;
+        let (cell, sweep, state, _) = lease_cell(&mut tx, lease).await?;
+        refuse_closed(cell, state)?;
+        let mut rows = 0;
+        let mut last = 0;
+        for (epoch, values) in epochs {
+            last = last.max(*epoch);
+            for (name, value) in values {
+                sqlx::query(
+                    "INSERT INTO epoch_metrics (cell_id, epoch, name, value, attempt_id) VALUES (?, ?, ?, ?, ?) \
+                     ON CONFLICT (cell_id, epoch, name) DO UPDATE SET value = excluded.value, attempt_id = excluded.attempt_id",
+                )
+                .bind(cell.0)
+                .bind(*epoch as i64)
+                .bind(name)
+                .bind(*value)
+                .bind(lease.0)
+                .execute(&mut *tx)
+                .await?;
+                rows += 1;
+            }
+        }
+        sqlx::query("UPDATE cells SET epochs_done = MAX(epochs_done, ?) WHERE id = ?")
+            .bind(last as i64)
+            .bind(cell.0)
+            .execute(&mut *tx)
+            .await?;
+        tx.commit().await?;
+        Ok((rows, cell, sweep))
+    }
+
+    async fn record_checkpoint(&self, lease: LeaseId, ckpt: &CheckpointRecord, rel_path: &str, now_ms: i64) -> Result<()> {
+        let mut tx = self.begin().await?;
+        let (cell, _, state, _) = lease_cell(&mut tx, lease).await?;
+        refuse_closed(cell, state)?;
+        sqlx::query("INSERT OR IGNORE INTO checkpoints (sha256, size, path, created_unix_ms) VALUES (?, ?, ?, ?)")
+            .bind(&ckpt.sha256)
+            .bind(ckpt.size as i64)
+            .bind(rel_path)
+            .bind(now_ms)
+            .execute(&mut *tx)
+            .await?;
+        sqlx::query(
+            "INSERT INTO cell_checkpoints (cell_id, epoch, sha256, attempt_id, unix_ms) VALUES (?, ?, ?, ?, ?) \
+             ON CONFLICT (cell_id, epoch) DO UPDATE SET sha256 = excluded.sha256, attempt_id = excluded.attempt_id",
+        )
+        .bind(cell.0)
+        .bind(ckpt.epoch as i64)
+        .bind(&ckpt.sha256)
+        .bind(lease.0)
+        .bind(now_ms)
+        .execute(&mut *tx)
+        .await?;
+        sqlx::query(
+            "UPDATE cells SET last_checkpoint_sha256 = ?, last_checkpoint_epoch = ? \
+             WHERE id = ? AND (last_checkpoint_epoch IS NULL OR last_checkpoint_epoch <= ?)",
+        )
+        .bind(&ckpt.sha256)
+        .bind(ckpt.epoch as i64)
+        .bind(cell.0)
+        .bind(ckpt.epoch as i64)
+        .execute(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok(())
+    }
+
+    async fn checkpoint_path(&self, sha256: &str) -> Result<(u64, String)> {
+        let row: Option<(i64, String)> = sqlx::query_as("SELECT size, path FROM checkpoints WHERE sha256 = ?")
+            .bind(sha256)
+            .fetch_optional(&self.read)
+            .await?;
+        let (size, path) = row.ok_or_else(|| Error::UnknownCheckpoint(sha256.to_string()))?;
+        Ok((size as u64, path))
+    }
+
+    async fn report_result(&self, lease: LeaseId, score: &GaitScore, epochs: u32, final_sha256: Option<&str>, now_ms: i64) -> Result<ResultOutcome> {
+        let mut tx = self.begin().await?;
+        let (cell_id, sweep, state, _) = lease_cell(&mut tx, lease).await?;
+        let scored: Option<i64> = sqlx::query_scalar("SELECT 1 FROM scores WHERE cell_id = ?")
+            .bind(cell_id.0)
+            .fetch_optional(&mut *tx)
+            .await?;
+        if scored.is_some() {
+            let cell = cell_tx(&mut tx, cell_id).await?;
+            return Ok(ResultOutcome { duplicate: true, cell, promotions: vec![], finished: None });
+        }
+        if state == CellState::Cancelled {
+            return Err(Error::CellClosed { cell: cell_id, state: state.to_string() });
+        }
+        let final_ckpt = match final_sha256 {
+            Some(sha) => {
+                let ck = checkpoint_of(&mut tx, Some(sha.to_string()), Some(epochs as i64)).await?;
+                if ck.is_none() {
+                    return Err(Error::BadRequest(format!(
+                        "final checkpoint {sha} was not uploaded: upload it before reporting the result"
+                    )));
+                }
+                ck
+            }
+            None => None,
+        };
+        sqlx::query(
+            "INSERT INTO scores (cell_id, attempt_id, score, track, effort, tilt, progress, fall_rate, mean_vel_error, \
+             mean_abs_torque, cost_of_transport, robots, epochs, final_checkpoint_sha256, reported_unix_ms) \
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        )
+        .bind(cell_id.0)
+        .bind(lease.0)
+        .bind(score.score)
+        .bind(score.track)
+        .bind(score.effort)
+        .bind(score.tilt)
+        .bind(score.progress)
+        .bind(score.fall_rate)
+        .bind(score.mean_vel_error)
+        .bind(score.mean_abs_torque)
+        .bind(score.cost_of_transport)
+        .bind(score.robots as i64)
+        .bind(epochs as i64)
+        .bind(final_sha256)
+        .bind(now_ms)
+        .execute(&mut *tx)
+        .await?;
+        sqlx::query("UPDATE attempts SET state = 'done', ended_unix_ms = ? WHERE id = ?")
+            .bind(now_ms)
+            .bind(lease.0)
+            .execute(&mut *tx)
+            .await?;
+        sqlx::query(
+            "UPDATE attempts SET state = 'cancelled', ended_unix_ms = ?, error = 'cell finished by another attempt' \
+             WHERE cell_id = ? AND state = 'running'",
+        )
+        .bind(now_ms)
+        .bind(cell_id.0)
+        .execute(&mut *tx)
+        .await?;
+        sqlx::query("UPDATE cells SET state = 'done', epochs_done = MAX(epochs_done, ?) WHERE id = ?")
+            .bind(epochs as i64)
+            .bind(cell_id.0)
+            .execute(&mut *tx)
+            .await?;
+        let cell = cell_tx(&mut tx, cell_id).await?;
+        let promotions = promote(&mut tx, &cell, score.score, final_ckpt, now_ms).await?;
+        let finished = finish_if_done(&mut tx, sweep, now_ms).await?;
+        tx.commit().await?;
+        Ok(ResultOutcome { duplicate: false, cell, promotions, finished })
+    }
+
+    async fn end_attempt(&self, lease: LeaseId, end: AttemptEnd, error: &str, max_attempts: u32, now_ms: i64) -> Result<AttemptOutcome> {
+        let mut tx = self.begin().await?;
+        let (cell_id, sweep, state, attempt_state) = lease_cell(&mut tx, lease).await?;
+        if attempt_state != "running" {
+            let cell = cell_tx(&mut tx, cell_id).await?;
+            return Ok(AttemptOutcome { cell, finished: None });
+        }
+        sqlx::query("UPDATE attempts SET state = ?, ended_unix_ms = ?, error = ? WHERE id = ?")
+            .bind(end.as_str())
+            .bind(now_ms)
+            .bind(error)
+            .bind(lease.0)
+            .execute(&mut *tx)
+            .await?;
+        let others: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM attempts WHERE cell_id = ? AND state = 'running'")
+            .bind(cell_id.0)
+            .fetch_one(&mut *tx)
+            .await?;
+        if state == CellState::Running && others == 0 {
+            let attempts: i64 = sqlx::query_scalar("SELECT attempts FROM cells WHERE id = ?")
+                .bind(cell_id.0)
+                .fetch_one(&mut *tx)
+                .await?;
+            let next = sched::after_failure(attempts as u32, max_attempts);
+            sqlx::query("UPDATE cells SET state = ?, last_error = ? WHERE id = ?")
+                .bind(next.as_str())
+                .bind(error)
+                .bind(cell_id.0)
+                .execute(&mut *tx)
+                .await?;
+        }
+        let cell = cell_tx(&mut tx, cell_id).await?;
+        let finished = finish_if_done(&mut tx, sweep, now_ms).await?;
+        tx.commit().await?;
+        Ok(AttemptOutcome { cell, finished })
+    }
+
+    async fn promoted(&self, id: SweepId, terrain: Option<&str>) -> Result<PromotionRecord> {
+        let mut tx = self.read.begin().await?;
+        sweep_tx(&mut tx, id).await?;
+        let row: Option<(i64, i64)> = sqlx::query_as(
+            "SELECT cell_id, promoted_unix_ms FROM promotions WHERE sweep_id = ? AND terrain = ? ORDER BY id DESC LIMIT 1",
+        )
+        .bind(id.0)
+        .bind(terrain.unwrap_or(""))
+        .fetch_optional(&mut *tx)
+        .await?;
+        let (cell_id, at) = row.ok_or(Error::NothingPromoted(id))?;
+        let cell = cell_tx(&mut tx, CellId(cell_id)).await?;
+        let (sha, epochs): (Option<String>, i64) =
+            sqlx::query_as("SELECT final_checkpoint_sha256, epochs FROM scores WHERE cell_id = ?")
+                .bind(cell_id)
+                .fetch_one(&mut *tx)
+                .await?;
+        let checkpoint = checkpoint_of(&mut tx, sha, Some(epochs)).await?;
+        Ok(PromotionRecord { sweep_id: id, terrain: terrain.map(str::to_string), cell, checkpoint, promoted_unix_ms: at })
+    }
+}

@@ -1,0 +1,216 @@
+//! The one place that converts between wire messages (`pb`) and domain types.
+
+use crate::pb;
+use crate::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
+use crate::spec::{Axis, EvalSpec, ResolvedSpec, SweepSpec};
+use crate::{CellState, Error, Result, SweepState};
+use gaitsweep_sim::GaitScore;
+
+impl From<&Axis> for pb::Axis {
+    fn from(a: &Axis) -> Self {
+        let kind = match a {
+            Axis::Range { min, max, count } => {
+                pb::axis::Kind::Range(pb::Range { min: *min, max: *max, count: *count as u32 })
+            }
+            Axis::Values { values } => pb::axis::Kind::Values(pb::Values { values: values.clone() }),
+        };
+        pb::Axis { kind: Some(kind) }
+    }
+}
+
+fn axis_from_wire(a: Option<pb::Axis>) -> Option<Axis> {
+    match a?.kind? {
+        pb::axis::Kind::Range(r) => Some(Axis::Range { min: r.min, max: r.max, count: r.count as usize }),
+        pb::axis::Kind::Values(v) => Some(Axis::Values { values: v.values }),
+    }
+}
+
+impl From<pb::SweepSpec> for SweepSpec {
+    fn from(s: pb::SweepSpec) -> Self {
+        let nonzero = |v: u32| (v != 0).then_some(v);
+        SweepSpec {
+            name: s.name,
+            robot: s.robot,
+            terrains: s.terrains,
+            difficulty: s.difficulty,
+            preset_grid: s.preset_grid,
+            w1: axis_from_wire(s.w1),
+            w2: axis_from_wire(s.w2),
+            agents_per_cell: nonzero(s.agents_per_cell).map(|v| v as usize),
+            epochs: nonzero(s.epochs),
+            checkpoint_every: s.checkpoint_every,
+            seed: s.seed,
+            ppo: s.ppo_overrides,
+            eval: EvalSpec {
+                robots: nonzero(s.eval_robots).map(|v| v as usize),
+                seconds: (s.eval_seconds != 0.0).then_some(s.eval_seconds),
+            },
+        }
+    }
+}
+
+impl From<&ResolvedSpec> for pb::SweepSpec {
+    fn from(s: &ResolvedSpec) -> Self {
+        pb::SweepSpec {
+            name: s.name.clone(),
+            robot: s.robot.clone(),
+            terrains: s.terrains.iter().map(|t| t.to_string()).collect(),
+            difficulty: s.difficulty.map(u32::from),
+            preset_grid: false,
+            w1: Some((&Axis::Values { values: s.w1_values.clone() }).into()),
+            w2: Some((&Axis::Values { values: s.w2_values.clone() }).into()),
+            agents_per_cell: s.agents_per_cell as u32,
+            epochs: s.epochs,
+            checkpoint_every: s.checkpoint_every,
+            seed: s.seed,
+            ppo_overrides: s.ppo_overrides.clone(),
+            eval_robots: s.eval_robots as u32,
+            eval_seconds: s.eval_seconds,
+        }
+    }
+}
+
+impl From<&GaitScore> for pb::GaitScore {
+    fn from(g: &GaitScore) -> Self {
+        pb::GaitScore {
+            score: g.score,
+            track: g.track,
+            effort: g.effort,
+            tilt: g.tilt,
+            progress: g.progress,
+            fall_rate: g.fall_rate,
+            mean_vel_error: g.mean_vel_error,
+            mean_abs_torque: g.mean_abs_torque,
+            cost_of_transport: g.cost_of_transport,
+            robots: g.robots as u32,
+        }
+    }
+}
+
+impl From<&pb::GaitScore> for GaitScore {
+    fn from(g: &pb::GaitScore) -> Self {
+        GaitScore {
+            score: g.score,
+            track: g.track,
+            effort: g.effort,
+            tilt: g.tilt,
+            progress: g.progress,
+            fall_rate: g.fall_rate,
+            mean_vel_error: g.mean_vel_error,
+            mean_abs_torque: g.mean_abs_torque,
+            cost_of_transport: g.cost_of_transport,
+            robots: g.robots as usize,
+        }
+    }
+}
+
+impl From<CellState> for pb::CellState {
+    fn from(s: CellState) -> Self {
+        match s {
+            CellState::Queued => pb::CellState::Queued,
+            CellState::Running => pb::CellState::Running,
+            CellState::Done => pb::CellState::Done,
+            CellState::Failed => pb::CellState::Failed,
+            CellState::Cancelled => pb::CellState::Cancelled,
+        }
+    }
+}
+
+impl TryFrom<pb::CellState> for CellState {
+    type Error = Error;
+    fn try_from(s: pb::CellState) -> Result<Self> {
+        Ok(match s {
+            pb::CellState::Queued => CellState::Queued,
+            pb::CellState::Running => CellState::Running,
+            pb::CellState::Done => CellState::Done,
+            pb::CellState::Failed => CellState::Failed,
+            pb::CellState::Cancelled => CellState::Cancelled,
+            pb::CellState::Unspecified => {
+                return Err(Error::UnknownValue { what: "cell state", value: "unspecified".into() })
+            }
+        })
+    }
+}
+
+impl From<SweepState> for pb::SweepState {
+    fn from(s: SweepState) -> Self {
+        match s {
+            SweepState::Running => pb::SweepState::Running,
+            SweepState::Done => pb::SweepState::Done,
+            SweepState::Cancelled => pb::SweepState::Cancelled,
+        }
+    }
+}
+
+impl From<&CheckpointRecord> for pb::CheckpointRef {
+    fn from(c: &CheckpointRecord) -> Self {
+        pb::CheckpointRef { sha256: c.sha256.clone(), size: c.size, epoch: c.epoch }
+    }
+}
+
+impl From<&pb::CheckpointRef> for CheckpointRecord {
+    fn from(c: &pb::CheckpointRef) -> Self {
+        CheckpointRecord { sha256: c.sha256.clone(), size: c.size, epoch: c.epoch }
+    }
+}
+
+impl From<&CellRecord> for pb::Cell {
+    fn from(c: &CellRecord) -> Self {
+        pb::Cell {
+            cell_id: c.id.0,
+            sweep_id: c.sweep_id.0,
+            terrain_index: c.terrain_index,
+            terrain: c.terrain.clone(),
+            w1_index: c.w1_index,
+            w2_index: c.w2_index,
+            w1: c.w1,
+            w2: c.w2,
+            state: pb::CellState::from(c.state) as i32,
+            attempts: c.attempts,
+            epochs_done: c.epochs_done,
+            score: c.score.as_ref().map(Into::into),
+            last_error: c.last_error.clone().unwrap_or_default(),
+            seed: c.seed,
+        }
+    }
+}
+
+impl From<&SweepRecord> for pb::Sweep {
+    fn from(s: &SweepRecord) -> Self {
+        pb::Sweep {
+            sweep_id: s.id.0,
+            spec: Some((&s.spec).into()),
+            state: pb::SweepState::from(s.state) as i32,
+            created_unix_ms: s.created_unix_ms,
+            cells_total: s.cells_total,
+            cells_queued: s.cells_queued,
+            cells_running: s.cells_running,
+            cells_done: s.cells_done,
+            cells_failed: s.cells_failed,
+            w1_values: s.spec.w1_values.clone(),
+            w2_values: s.spec.w2_values.clone(),
+            best_cell_id: s.best_cell.map_or(0, |c| c.0),
+        }
+    }
+}
+
+impl From<&PromotionRecord> for pb::Promotion {
+    fn from(p: &PromotionRecord) -> Self {
+        pb::Promotion {
+            sweep_id: p.sweep_id.0,
+            terrain: p.terrain.clone().unwrap_or_default(),
+            cell: Some((&p.cell).into()),
+            checkpoint: p.checkpoint.as_ref().map(Into::into),
+            promoted_unix_ms: p.promoted_unix_ms,
+        }
+    }
+}
+
+/// The spec of a create request: TOML text or structured.
+pub fn spec_from_request(req: pb::CreateSweepRequest) -> Result<SweepSpec> {
+    match req.spec {
+        Some(pb::create_sweep_request::Spec::Toml(text)) => SweepSpec::from_toml(&text),
+        Some(pb::create_sweep_request::Spec::Structured(s)) => Ok(s.into()),
+        None => Err(Error::MissingField { message: "CreateSweepRequest", field: "spec" }),
+    }
+}

@@ -1,0 +1,33 @@
+//! gaitsweep-core: the domain types shared by the coordinator, the workers and the tools
+//! (ids, cell and sweep states, the sweep spec with its validation and grid expansion), the
+//! generated gRPC code of `gaitsweep.v1`, and the one place that converts between them.
+
+pub mod convert;
+pub mod error;
+pub mod ids;
+pub mod records;
+pub mod spec;
+pub mod state;
+
+pub use error::{Error, Result};
+pub use ids::{CellId, LeaseId, SweepId, WorkerId};
+pub use spec::{Axis, CellPlan, ResolvedSpec, SweepSpec};
+pub use state::{CellState, SweepState};
+
+/// Generated protobuf messages and tonic clients/servers of package `gaitsweep.v1`.
+#[allow(missing_docs, clippy::all)]
+pub mod pb {
+    tonic::include_proto!("gaitsweep.v1");
+
+    /// Encoded file descriptor set of `gaitsweep.v1`, for server reflection.
+    pub const FILE_DESCRIPTOR_SET: &[u8] =
+        tonic::include_file_descriptor_set!("gaitsweep_v1_descriptor");
+}
+
+/// Metadata key that carries the access token (`authorization: Bearer TOKEN`).
+pub const AUTH_HEADER: &str = "authorization";
+
+/// The value of the authorization header for a token.
+pub fn bearer(token: &str) -> String {
+    format!("Bearer {token}")
+}

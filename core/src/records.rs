@@ -1,0 +1,89 @@
+//! Domain records the coordinator stores and serves: sweeps, cells, checkpoints,
+//! promotions. Their wire forms are built in [`crate::convert`].
+
+use crate::{CellId, CellState, ResolvedSpec, SweepId, SweepState};
+use gaitsweep_sim::GaitScore;
+
+/// A stored checkpoint: content-addressed file with its epoch.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckpointRecord {
+    /// Hex sha256 of the file.
+    pub sha256: String,
+    /// Size in bytes.
+    pub size: u64,
+    /// Epoch it was taken at.
+    pub epoch: u32,
+}
+
+/// One cell as stored.
+#[derive(Debug, Clone)]
+pub struct CellRecord {
+    /// Cell id.
+    pub id: CellId,
+    /// Sweep id.
+    pub sweep_id: SweepId,
+    /// Index into the sweep's terrains.
+    pub terrain_index: u32,
+    /// Terrain name.
+    pub terrain: String,
+    /// Row.
+    pub w1_index: u32,
+    /// Column.
+    pub w2_index: u32,
+    /// Velocity tracking weight.
+    pub w1: f64,
+    /// Torque penalty exponent.
+    pub w2: f64,
+    /// The cell's seed.
+    pub seed: u64,
+    /// State.
+    pub state: CellState,
+    /// Attempts started.
+    pub attempts: u32,
+    /// Last epoch reported.
+    pub epochs_done: u32,
+    /// Score once done.
+    pub score: Option<GaitScore>,
+    /// Last error of a failed attempt.
+    pub last_error: Option<String>,
+}
+
+/// One sweep as stored, with cell counts.
+#[derive(Debug, Clone)]
+pub struct SweepRecord {
+    /// Sweep id.
+    pub id: SweepId,
+    /// Resolved spec.
+    pub spec: ResolvedSpec,
+    /// State.
+    pub state: SweepState,
+    /// Creation time, unix ms.
+    pub created_unix_ms: i64,
+    /// Cells in total.
+    pub cells_total: u32,
+    /// Cells queued.
+    pub cells_queued: u32,
+    /// Cells running.
+    pub cells_running: u32,
+    /// Cells done.
+    pub cells_done: u32,
+    /// Cells failed.
+    pub cells_failed: u32,
+    /// Promoted cell over all terrains.
+    pub best_cell: Option<CellId>,
+}
+
+/// A promoted cell.
+#[derive(Debug, Clone)]
+pub struct PromotionRecord {
+    /// Sweep id.
+    pub sweep_id: SweepId,
+    /// Terrain, `None` for the best over all terrains.
+    pub terrain: Option<String>,
+    /// The cell with its score.
+    pub cell: CellRecord,
+    /// Its final checkpoint.
+    pub checkpoint: Option<CheckpointRecord>,
+    /// Promotion time, unix ms.
+    pub promoted_unix_ms: i64,
+}

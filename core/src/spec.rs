@@ -1,0 +1,461 @@
+//! The sweep spec (TOML or gRPC), its validation (every problem listed) and the grid
+//! expansion into cells.
+
+use crate::{Error, Result};
+use gaitsweep_sim::TerrainKind;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Most cells one sweep may have.
+pub const MAX_CELLS: usize = 100_000;
+
+/// One reward-weight axis as written by a user: a range with a count, or explicit values.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged, deny_unknown_fields)]
+pub enum Axis {
+    /// `count` evenly spaced values from `min` to `max`, ends included.
+    Range {
+        /// First value.
+        min: f64,
+        /// Last value.
+        max: f64,
+        /// Number of values.
+        count: usize,
+    },
+    /// Explicit values in grid order.
+    Values {
+        /// The values.
+        values: Vec<f64>,
+    },
+}
+
+impl Axis {
+    /// The values of the axis.
+    pub fn values(&self) -> Vec<f64> {
+        match self {
+            Axis::Range { min, max, count } => match *count {
+                0 => vec![],
+                1 => vec![*min],
+                n => (0..n).map(|i| min + (max - min) * i as f64 / (n - 1) as f64).collect(),
+            },
+            Axis::Values { values } => values.clone(),
+        }
+    }
+}
+
+/// Evaluation rollout settings.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EvalSpec {
+    /// Robots in the evaluation rollout.
+    pub robots: Option<usize>,
+    /// Length of the rollout in seconds.
+    pub seconds: Option<f32>,
+}
+
+/// A sweep spec as a user writes it (TOML) or sends it (gRPC); unset fields fall back to
+/// the robot preset's grid or to defaults when resolved.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SweepSpec {
+    /// Name of the sweep (default: robot and terrains).
+    #[serde(default)]
+    pub name: String,
+    /// Robot preset name.
+    pub robot: String,
+    /// Terrain names; each gets its own grid.
+    #[serde(default)]
+    pub terrains: Vec<String>,
+    /// Terrain difficulty level 0-9.
+    pub difficulty: Option<u32>,
+    /// Take the unset grid fields from the preset's Table-1 grid.
+    #[serde(default)]
+    pub preset_grid: bool,
+    /// w1 axis (velocity tracking weight).
+    pub w1: Option<Axis>,
+    /// w2 axis (log10 torque penalty weight).
+    pub w2: Option<Axis>,
+    /// Simulated robots per cell.
+    pub agents_per_cell: Option<usize>,
+    /// PPO epochs per cell.
+    pub epochs: Option<u32>,
+    /// Checkpoint every this many epochs (0: only the final one).
+    #[serde(default)]
+    pub checkpoint_every: u32,
+    /// Base seed.
+    #[serde(default)]
+    pub seed: u64,
+    /// PPO hyper-parameter overrides.
+    #[serde(default)]
+    pub ppo: BTreeMap<String, f64>,
+    /// Evaluation rollout.
+    #[serde(default)]
+    pub eval: EvalSpec,
+}
+
+/// A validated spec with every default filled in: what the coordinator stores and runs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ResolvedSpec {
+    /// Name of the sweep.
+    pub name: String,
+    /// Robot preset name.
+    pub robot: String,
+    /// Terrains, in grid order.
+    #[serde(with = "terrain_names")]
+    pub terrains: Vec<TerrainKind>,
+    /// Terrain difficulty level.
+    pub difficulty: Option<u8>,
+    /// w1 values (grid rows).
+    pub w1_values: Vec<f64>,
+    /// w2 values (grid columns).
+    pub w2_values: Vec<f64>,
+    /// Simulated robots per cell.
+    pub agents_per_cell: usize,
+    /// PPO epochs per cell.
+    pub epochs: u32,
+    /// Checkpoint interval in epochs (0: only the final one).
+    pub checkpoint_every: u32,
+    /// Base seed.
+    pub seed: u64,
+    /// PPO overrides.
+    pub ppo_overrides: BTreeMap<String, f64>,
+    /// Robots in the evaluation rollout (0: trainer default).
+    pub eval_robots: usize,
+    /// Evaluation seconds (0: trainer default).
+    pub eval_seconds: f32,
+}
+
+/// One cell of an expanded grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellPlan {
+    /// Index into the terrain list.
+    pub terrain_index: usize,
+    /// Terrain.
+    pub terrain: TerrainKind,
+    /// Row (w1 index).
+    pub w1_index: usize,
+    /// Column (w2 index).
+    pub w2_index: usize,
+    /// Velocity tracking weight.
+    pub w1: f64,
+    /// Torque penalty exponent.
+    pub w2: f64,
+    /// The cell's own seed.
+    pub seed: u64,
+}
+
+/// The grid defaults a robot preset provides.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PresetGrid {
+    /// w1 axis.
+    pub w1: Axis,
+    /// w2 axis.
+    pub w2: Axis,
+    /// Agents per cell.
+    pub agents_per_cell: usize,
+    /// Epochs.
+    pub epochs: u32,
+}
+
+impl SweepSpec {
+    /// Parses a TOML spec (unknown keys are an error).
+    pub fn from_toml(text: &str) -> Result<Self> {
+        Ok(toml::from_str(text)?)
+    }
+
+    /// Validates the spec against the robot presets on disk (`robots/`): the robot must
+    /// exist and PPO overrides must name real hyper-parameters.
+    pub fn resolve(&self) -> Result<ResolvedSpec> {
+        self.resolve_with(|robot| {
+            let preset = gaitsweep_sim::Preset::load(robot).map_err(|e| e.to_string())?;
+            let mut ppo = preset.ppo.clone();
+            let override_problem = ppo.apply_overrides(&self.ppo).err().map(|e| e.to_string());
+            let g = &preset.grid;
+            let grid = PresetGrid {
+                w1: Axis::Range { min: g.w1.min, max: g.w1.max, count: g.w1.count },
+                w2: Axis::Range { min: g.w2.min, max: g.w2.max, count: g.w2.count },
+                agents_per_cell: g.agents_per_cell,
+                epochs: g.epochs,
+            };
+            Ok((grid, override_problem))
+        })
+    }
+
+    /// Validates the spec with a preset lookup (`robot -> (grid, PPO override problem)` or
+    /// the reason the robot is unknown) and fills in defaults. Lists every problem.
+    pub fn resolve_with(
+        &self,
+        preset: impl FnOnce(&str) -> std::result::Result<(PresetGrid, Option<String>), String>,
+    ) -> Result<ResolvedSpec> {
+        let mut problems = Vec::new();
+        let mut grid = None;
+        if self.robot.trim().is_empty() {
+            problems.push("robot is empty: name a robot preset such as \"anymal\"".to_string());
+        } else {
+            match preset(&self.robot) {
+                Ok((g, override_problem)) => {
+                    if let Some(p) = override_problem {
+                        problems.push(format!("ppo overrides: {p}"));
+                    }
+                    grid = Some(g);
+                }
+                Err(e) => problems.push(format!("robot {:?}: {e}", self.robot)),
+            }
+        }
+        let mut terrains = Vec::new();
+        if self.terrains.is_empty() {
+            problems.push("terrains is empty: list at least one of flat, rough, stairs, slopes".into());
+        }
+        for t in &self.terrains {
+            match t.parse::<TerrainKind>() {
+                Ok(k) if terrains.contains(&k) => problems.push(format!("terrain {t:?} is listed twice")),
+                Ok(k) => terrains.push(k),
+                Err(_) => problems.push(format!(
+                    "terrain {t:?} is unknown: use flat, rough, stairs or slopes"
+                )),
+            }
+        }
+        if let Some(d) = self.difficulty {
+            if d > 9 {
+                problems.push(format!("difficulty {d} is out of range: use 0 to 9"));
+            }
+        }
+        let from_preset = |field: &str, problems: &mut Vec<String>| {
+            if !self.preset_grid {
+                problems.push(format!("{field} is missing: set it or set preset_grid = true"));
+            }
+        };
+        let axis = |name: &str, given: &Option<Axis>, preset: Option<&Axis>, problems: &mut Vec<String>| {
+            let axis = match (given, preset) {
+                (Some(a), _) => Some(a.clone()),
+                (None, p) => {
+                    from_preset(name, problems);
+                    if self.preset_grid { p.cloned() } else { None }
+                }
+            };
+            let values = axis.map(|a| a.values()).unwrap_or_default();
+            if let Some(Axis::Range { count: 0, .. }) = given {
+                problems.push(format!("{name}.count is 0: use at least 1"));
+            }
+            if let Some(Axis::Values { values }) = given {
+                if values.is_empty() {
+                    problems.push(format!("{name}.values is empty: list at least one value"));
+                }
+            }
+            if values.iter().any(|v| !v.is_finite()) {
+                problems.push(format!("{name} has a value that is not finite"));
+            }
+            values
+        };
+        let w1_values = axis("w1", &self.w1, grid.as_ref().map(|g| &g.w1), &mut problems);
+        let w2_values = axis("w2", &self.w2, grid.as_ref().map(|g| &g.w2), &mut problems);
+        if w2_values.iter().any(|v| *v > 3.0) {
+            problems.push("w2 is the log10 of the torque weight: values above 3 are not sensible".into());
+        }
+        let agents_per_cell = match self.agents_per_cell {
+            Some(0) => {
+                problems.push("agents_per_cell is 0: use at least 1".into());
+                0
+            }
+            Some(n) => n,
+            None => {
+                from_preset("agents_per_cell", &mut problems);
+                grid.as_ref().map_or(0, |g| g.agents_per_cell)
+            }
+        };
+        let epochs = match self.epochs {
+            Some(0) => {
+                problems.push("epochs is 0: use at least 1".into());
+                0
+            }
+            Some(n) => n,
+            None => {
+                from_preset("epochs", &mut problems);
+                grid.as_ref().map_or(0, |g| g.epochs)
+            }
+        };
+        if let Some(s) = self.eval.seconds {
+            if !(s.is_finite() && s > 0.0) {
+                problems.push(format!("eval.seconds {s} must be a positive number"));
+            }
+        }
+        if self.eval.robots == Some(0) {
+            problems.push("eval.robots is 0: use at least 1".into());
+        }
+        for (k, v) in &self.ppo {
+            if !v.is_finite() {
+                problems.push(format!("ppo.{k} is not a finite number"));
+            }
+        }
+        let cells = terrains.len().max(1) * w1_values.len() * w2_values.len();
+        if cells > MAX_CELLS {
+            problems.push(format!("the grid has {cells} cells, more than the limit of {MAX_CELLS}"));
+        }
+        if !problems.is_empty() {
+            return Err(Error::InvalidSpec(problems));
+        }
+        let name = if self.name.trim().is_empty() {
+            let t: Vec<String> = terrains.iter().map(|t| t.to_string()).collect();
+            format!("{}-{}", self.robot, t.join("-"))
+        } else {
+            self.name.clone()
+        };
+        Ok(ResolvedSpec {
+            name,
+            robot: self.robot.clone(),
+            terrains,
+            difficulty: self.difficulty.map(|d| d as u8),
+            w1_values,
+            w2_values,
+            agents_per_cell,
+            epochs,
+            checkpoint_every: self.checkpoint_every,
+            seed: self.seed,
+            ppo_overrides: self.ppo.clone(),
+            eval_robots: self.eval.robots.unwrap_or(0),
+            eval_seconds: self.eval.seconds.unwrap_or(0.0),
+        })
+    }
+}
+
+impl ResolvedSpec {
+    /// Expands the grid: terrains x w1 x w2, in that order, each cell with its own seed.
+    pub fn cells(&self) -> Vec<CellPlan> {
+        let mut out = Vec::with_capacity(self.cell_count());
+        for (ti, terrain) in self.terrains.iter().enumerate() {
+            for (i, &w1) in self.w1_values.iter().enumerate() {
+                for (j, &w2) in self.w2_values.iter().enumerate() {
+                    let ordinal = out.len() as u64;
+                    out.push(CellPlan {
+                        terrain_index: ti,
+                        terrain: *terrain,
+                        w1_index: i,
+                        w2_index: j,
+                        w1,
+                        w2,
+                        seed: splitmix64(self.seed.wrapping_add(ordinal)),
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    /// Number of cells of the grid.
+    pub fn cell_count(&self) -> usize {
+        self.terrains.len() * self.w1_values.len() * self.w2_values.len()
+    }
+}
+
+/// Stores terrains by their names (`flat`, `rough`, ...).
+mod terrain_names {
+    use gaitsweep_sim::TerrainKind;
+    use serde::{de::Error as _, Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &[TerrainKind], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(v.iter().map(|t| t.to_string()))
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<TerrainKind>, D::Error> {
+        Vec::<String>::deserialize(d)?
+            .iter()
+            .map(|s| s.parse().map_err(|_| D::Error::custom(format!("unknown terrain {s:?}"))))
+            .collect()
+    }
+}
+
+/// A well-mixed 64-bit hash, so neighbouring cells get unrelated seeds.
+fn splitmix64(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    (z ^ (z >> 31)) >> 1 // fits in i64 for SQLite
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid() -> PresetGrid {
+        PresetGrid {
+            w1: Axis::Range { min: 2.0, max: 12.0, count: 4 },
+            w2: Axis::Range { min: -10.0, max: -2.0, count: 7 },
+            agents_per_cell: 146,
+            epochs: 3000,
+        }
+    }
+
+    fn ok(_: &str) -> std::result::Result<(PresetGrid, Option<String>), String> {
+        Ok((grid(), None))
+    }
+
+    #[test]
+    fn preset_grid_is_one_flag_away() {
+        let spec = SweepSpec::from_toml("robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\n").unwrap();
+        let r = spec.resolve_with(ok).unwrap();
+        assert_eq!(r.cell_count(), 28);
+        assert_eq!(r.agents_per_cell, 146);
+        assert!((r.w1_values[1] - 5.3333).abs() < 1e-3);
+    }
+
+    #[test]
+    fn explicit_lists_and_ranges() {
+        let text = r#"
+            robot = "anymal"
+            terrains = ["flat", "rough"]
+            w1 = { min = 2.0, max = 4.0, count = 2 }
+            w2 = { values = [-6.0, -4.0, -2.0] }
+            agents_per_cell = 4
+            epochs = 2
+            checkpoint_every = 1
+            seed = 9
+            ppo = { learning_rate = 0.0005 }
+            eval = { robots = 2, seconds = 2.0 }
+        "#;
+        let r = SweepSpec::from_toml(text).unwrap().resolve_with(ok).unwrap();
+        let cells = r.cells();
+        assert_eq!(cells.len(), 12);
+        assert_eq!(cells[3].w2, -6.0);
+        assert_eq!(cells[3].w1, 4.0);
+        assert_eq!(cells[6].terrain_index, 1);
+        let seeds: std::collections::BTreeSet<u64> = cells.iter().map(|c| c.seed).collect();
+        assert_eq!(seeds.len(), 12);
+    }
+
+    #[test]
+    fn every_problem_is_listed() {
+        let text = "robot = \"\"\nterrains = [\"lava\", \"flat\", \"flat\"]\ndifficulty = 12\nagents_per_cell = 0\nepochs = 0\nw1 = { values = [] }\n";
+        let err = SweepSpec::from_toml(text).unwrap().resolve_with(ok).unwrap_err();
+        let Error::InvalidSpec(p) = err else { panic!("wrong error {err}") };
+        let all = p.join("\n");
+        for needle in ["robot is empty", "lava", "listed twice", "difficulty", "agents_per_cell is 0", "epochs is 0", "w1.values is empty", "w2 is missing"] {
+            assert!(all.contains(needle), "{needle} not in {all}");
+        }
+    }
+
+    #[test]
+    fn unknown_keys_are_rejected() {
+        assert!(matches!(SweepSpec::from_toml("robot = \"anymal\"\nbogus = 1\n"), Err(Error::SpecToml(_))));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn grid_expansion_covers_every_pair(n1 in 1usize..6, n2 in 1usize..6, nt in 1usize..3) {
+            let terrains = ["flat", "rough"][..nt].iter().map(|s| s.to_string()).collect();
+            let spec = SweepSpec {
+                robot: "anymal".into(), terrains,
+                w1: Some(Axis::Range { min: 0.0, max: 1.0, count: n1 }),
+                w2: Some(Axis::Range { min: -3.0, max: -1.0, count: n2 }),
+                agents_per_cell: Some(1), epochs: Some(1), ..Default::default()
+            };
+            let r = spec.resolve_with(ok).unwrap();
+            let cells = r.cells();
+            proptest::prop_assert_eq!(cells.len(), n1 * n2 * nt);
+            let pairs: std::collections::BTreeSet<(usize, usize, usize)> =
+                cells.iter().map(|c| (c.terrain_index, c.w1_index, c.w2_index)).collect();
+            proptest::prop_assert_eq!(pairs.len(), cells.len());
+            proptest::prop_assert_eq!(cells[0].w1, 0.0);
+            proptest::prop_assert_eq!(cells.last().unwrap().w2, if n2 == 1 { -3.0 } else { -1.0 });
+        }
+    }
+}

@@ -1,0 +1,86 @@
+#!/usr/bin/env bash
+# Simulation benchmark (issue 2, deliverable 8): rapier (simbench) and MuJoCo side by side in
+# one run, same robots (URDF + preset), dt, PD law, random actions and terrains.
+#
+#   scripts/bench-sim.sh            # prints one markdown table (about 3-4 minutes on 2 cores)
+#   scripts/bench-sim.sh --quick    # fewer steps, for checking the script
+#
+# Installs the PyPI `mujoco` package into the project venv (the cache, outside the clone)
+# if it is missing. Robot-steps/s = physics steps x robots per second, summed over threads.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+MUJOCO_VERSION="${MUJOCO_VERSION:-4.0.0}"
+STEPS=200
+if [[ "${1:-}" == "--quick" ]]; then STEPS=40; fi
+
+source scripts/setup.sh
+PY="$VIRTUAL_ENV/bin/python"
+if ! "$PY" -c "import mujoco, sys; sys.exit(0 if mujoco.__version__ == '$MUJOCO_VERSION' else 1)" 2>/dev/null; then
+  echo "bench-sim: installing mujoco==$MUJOCO_VERSION into $VIRTUAL_ENV" >&2
+  "$VIRTUAL_ENV/bin/pip" install --quiet "mujoco==$MUJOCO_VERSION"
+fi
+cargo build --release -p gaitsweep-sim --bin simbench >&2
+
+TMP="$(mktemp -d)"
+trap 'rm -rf "$TMP"' EXIT
+SIMBENCH=(target/release/simbench --json --robots anymal,heavy --terrains flat,rough,stairs
+          --threads 1,2 --steps "$STEPS" --extra multibody:1:1)
+# rapier's own defaults (multibody joints, 4 solver iterations, 1 PGS iteration): the
+# setting of the issue's "rapier default" anchor; anymal on rough only, to keep the run short.
+SIMBENCH_DEFAULT=(target/release/simbench --json --robots anymal --terrains rough --threads 1,2
+                  --steps "$STEPS" --no-default --extra multibody:4:1)
+MUJOCO=("$PY" bench/mujoco_bench.py --json --robots anymal,heavy --terrains flat,rough,stairs
+        --threads 1,2 --steps "$STEPS")
+
+load_before="$(cut -d' ' -f1-3 /proc/loadavg)"
+start=$(date +%s)
+echo "bench-sim: ${SIMBENCH[*]}" >&2
+"${SIMBENCH[@]}" | tee "$TMP/rapier.jsonl" >&2
+echo "bench-sim: ${SIMBENCH_DEFAULT[*]}" >&2
+# Its "preset" rows repeat the first run's; keep only the extra setting.
+"${SIMBENCH_DEFAULT[@]}" | tee /dev/stderr | grep -v '"setting":"preset"' >> "$TMP/rapier.jsonl"
+echo "bench-sim: ${MUJOCO[*]}" >&2
+"${MUJOCO[@]}" | tee "$TMP/mujoco.jsonl" >&2
+load_after="$(cut -d' ' -f1-3 /proc/loadavg)"
+elapsed=$(( $(date +%s) - start ))
+
+cpu="$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//')"
+rev="$(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+mjv="$("$PY" -c 'import mujoco; print(mujoco.__version__)')"
+
+echo "Machine: $(nproc) cores, $cpu; $(date -u '+%Y-%m-%d %H:%M UTC'); commit $rev; MuJoCo $mjv."
+echo "Load average (1/5/15 min) before: $load_before; after: $load_after; benchmark took ${elapsed} s."
+echo "Command: scripts/bench-sim.sh $*  (runs: ${SIMBENCH[*]}; ${SIMBENCH_DEFAULT[*]}; python ${MUJOCO[*]:1})"
+echo
+"$PY" - "$TMP/rapier.jsonl" "$TMP/mujoco.jsonl" <<'EOF'
+import json, sys, tomllib
+def control(robot):
+    with open(f"robots/{robot}/preset.toml", "rb") as f:
+        return tomllib.load(f)["control"]
+rapier = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
+mujoco = [json.loads(l) for l in open(sys.argv[2]) if l.strip()]
+mj = {(r["robot"], r["terrain"], r["threads"]): r for r in mujoco}
+order = {"preset": 0, "multibody:1:1": 1, "rapier default": 2, "multibody:4:1": 3, "mujoco": 9}
+rows = rapier + mujoco
+rows.sort(key=lambda r: (r["robot"], ["flat", "rough", "stairs"].index(r["terrain"]), order.get(r["setting"], 1), r["threads"]))
+print("| robot | terrain | setting | solver iterations | threads | robot-steps/s | MuJoCo (same robot, terrain, threads) | ratio to MuJoCo |")
+print("|---|---|---|---:|---:|---:|---:|---:|")
+for r in rows:
+    m = mj.get((r["robot"], r["terrain"], r["threads"]))
+    ref = m["robot_steps_per_s"] if m else float("nan")
+    if r["setting"].startswith("mujoco"):
+        setting = f'MuJoCo {r.get("mujoco_version", "")} ({r.get("solver", "").replace("mjSOL_", "").title()}, defaults)'
+    elif r["setting"] == "preset":
+        c = control(r["robot"])
+        setting = f'preset: {c["joints"]}, {c["pgs_iterations"]} PGS'
+    elif r["setting"] == "rapier default":
+        c = control(r["robot"])
+        setting = f'simbench "rapier default": {c["joints"]}, {c["pgs_iterations"]} PGS'
+    elif r["setting"] == "multibody:4:1":
+        setting = "rapier's defaults: multibody, 1 PGS (multibody:4:1)"
+    else:
+        backend, _, pgs = r["setting"].split(":")
+        setting = f"{backend}, {pgs} PGS ({r['setting']})"
+    print(f'| {r["robot"]} | {r["terrain"]} | {setting} | {r["solver_iterations"]} | {r["threads"]} '
+          f'| {r["robot_steps_per_s"]:,.0f} | {ref:,.0f} | {r["robot_steps_per_s"] / ref:.2f} |')
+EOF

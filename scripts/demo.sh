@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# The README's main command: a small sweep end to end on localhost. Starts a coordinator
+# (embedded SQLite in a fresh data dir), one worker per core, runs scripts/demo-sweep.toml,
+# prints the score grid and the promoted cell, writes the report, and shuts everything
+# down, on success and on Ctrl-C.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source scripts/setup.sh
+cargo build --release --workspace --bins
+
+SPEC="${1:-scripts/demo-sweep.toml}"
+OUT="${GAITSWEEP_DEMO_OUT:-$PWD/demo-output}"
+rm -rf "$OUT"
+mkdir -p "$OUT/data"
+BIN="$PWD/target/release"
+pids=()
+cleanup() {
+  trap - EXIT INT TERM
+  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
+  wait 2>/dev/null || true
+}
+trap cleanup EXIT
+trap 'echo "interrupted: stopping coordinator and workers" >&2; exit 130' INT TERM
+
+"$BIN/coordinator" serve --listen 127.0.0.1:0 --data-dir "$OUT/data" > "$OUT/coordinator.log" 2>&1 &
+pids+=($!)
+for _ in $(seq 1 100); do
+  [ -s "$OUT/data/coordinator.addr" ] && break
+  sleep 0.1
+done
+[ -s "$OUT/data/coordinator.addr" ] || { echo "coordinator did not start; see $OUT/coordinator.log" >&2; exit 1; }
+URL="http://$(cat "$OUT/data/coordinator.addr")"
+export GAITSWEEP_URL="$URL"
+echo "coordinator on $URL, data in $OUT/data"
+
+WORKERS="${GAITSWEEP_DEMO_WORKERS:-$(nproc)}"
+for i in $(seq 1 "$WORKERS"); do
+  "$BIN/worker" --connect "$URL" --slots 1 --threads 1 --work-dir "$OUT/work-$i" > "$OUT/worker-$i.log" 2>&1 &
+  pids+=($!)
+done
+echo "started $WORKERS workers (logs in $OUT)"
+
+created=$("$BIN/coordinator" create "$SPEC")
+echo "$created"
+SWEEP=$(echo "$created" | sed -n 's/^created sweep \([0-9]*\).*/\1/p')
+start=$(date +%s)
+"$BIN/coordinator" watch "$SWEEP"
+echo "sweep finished in $(( $(date +%s) - start )) s"
+"$BIN/coordinator" show "$SWEEP" | tee "$OUT/grid.txt"
+"$BIN/coordinator" fetch-best "$SWEEP" --out "$OUT/best.safetensors"
+if "$BIN/coordinator" report --help > /dev/null 2>&1; then
+  "$BIN/coordinator" report "$SWEEP" --data-dir "$OUT/data" --out "$OUT/report"
+  echo "report: $OUT/report/index.html"
+fi
+echo "best model: $OUT/best.safetensors"

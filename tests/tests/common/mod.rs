@@ -1,0 +1,200 @@
+//! Helpers of the end-to-end tests: real `coordinator` and `worker` processes from
+//! `target/release`, one temp dir per test, bounded waits.
+
+#![allow(dead_code)]
+
+use gaitsweep_core::pb::{self, sweep_service_client::SweepServiceClient, worker_service_client::WorkerServiceClient};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+use tonic::transport::Channel;
+
+/// Serialises the tests that train (two cores only).
+pub static HEAVY: Mutex<()> = Mutex::new(());
+
+/// Takes the heavy-test lock even if an earlier test panicked while holding it.
+pub fn heavy() -> std::sync::MutexGuard<'static, ()> {
+    HEAVY.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A binary built next to this test executable (target/release/NAME).
+pub fn bin(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().expect("current exe");
+    let dir = exe.parent().and_then(Path::parent).expect("target/release");
+    let path = dir.join(name);
+    assert!(
+        path.is_file(),
+        "{} is missing: build the binaries first with `cargo build --release --workspace --bins`",
+        path.display()
+    );
+    path
+}
+
+/// A child process killed (SIGKILL) when dropped, with its log in a file.
+pub struct Proc {
+    pub child: Child,
+    pub log: PathBuf,
+}
+
+impl Proc {
+    pub fn spawn(name: &str, args: &[String], log: PathBuf) -> Proc {
+        let out = std::fs::File::create(&log).expect("create log");
+        let child = Command::new(bin(name))
+            .args(args)
+            .env("RUST_LOG", "info")
+            .stdout(out.try_clone().unwrap())
+            .stderr(out)
+            .stdin(Stdio::null())
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {name}: {e}"));
+        Proc { child, log }
+    }
+
+    /// kill -9.
+    pub fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
+    pub fn log_text(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+/// Polls `f` every 100 ms until it yields a value or `timeout` passes (then panics with `what`).
+pub async fn wait_for<T, F, Fut>(what: &str, timeout: Duration, mut f: F) -> T
+where
+    F: FnMut() -> Fut,
+    Fut: std::future::Future<Output = Option<T>>,
+{
+    let start = Instant::now();
+    loop {
+        if let Some(v) = f().await {
+            return v;
+        }
+        assert!(start.elapsed() < timeout, "timed out after {timeout:?} waiting for {what}");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
+/// A running coordinator.
+pub struct Coord {
+    pub proc: Proc,
+    pub addr: String,
+    pub data: PathBuf,
+}
+
+impl Coord {
+    /// Starts `coordinator serve` on `listen` with the data dir `data` and extra flags.
+    pub async fn start(root: &Path, listen: &str, extra: &[&str]) -> Coord {
+        let data = root.join("data");
+        let addr_file = data.join("coordinator.addr");
+        let _ = std::fs::remove_file(&addr_file);
+        let mut args: Vec<String> = ["serve", "--listen", listen, "--data-dir"].iter().map(|s| s.to_string()).collect();
+        args.push(data.display().to_string());
+        args.extend(extra.iter().map(|s| s.to_string()));
+        let n = std::fs::read_dir(root).map(|d| d.count()).unwrap_or(0);
+        let proc = Proc::spawn("coordinator", &args, root.join(format!("coordinator-{n}.log")));
+        let addr = wait_for("the coordinator's address file", Duration::from_secs(30), || {
+            let f = addr_file.clone();
+            async move { std::fs::read_to_string(f).ok().filter(|s| !s.is_empty()) }
+        })
+        .await;
+        Coord { proc, addr, data }
+    }
+
+    pub fn url(&self) -> String {
+        format!("http://{}", self.addr)
+    }
+
+    pub async fn channel(&self) -> Channel {
+        Channel::from_shared(self.url()).unwrap().connect().await.expect("connect to coordinator")
+    }
+
+    pub async fn sweeps(&self) -> SweepServiceClient<Channel> {
+        SweepServiceClient::new(self.channel().await)
+    }
+
+    pub async fn workers(&self) -> WorkerServiceClient<Channel> {
+        WorkerServiceClient::new(self.channel().await)
+    }
+
+    pub async fn db(&self) -> sqlx::SqlitePool {
+        let opts = sqlx::sqlite::SqliteConnectOptions::new()
+            .filename(self.data.join("gaitsweep.sqlite"))
+            .read_only(true);
+        sqlx::sqlite::SqlitePoolOptions::new().max_connections(1).connect_with(opts).await.expect("open db")
+    }
+}
+
+/// Starts a worker daemon with one slot and one thread.
+pub fn start_worker(root: &Path, url: &str, name: &str) -> Proc {
+    let work = root.join(format!("work-{name}"));
+    let args: Vec<String> = vec![
+        "--connect".into(),
+        url.into(),
+        "--slots".into(),
+        "1".into(),
+        "--threads".into(),
+        "1".into(),
+        "--work-dir".into(),
+        work.display().to_string(),
+        "--max-backoff-seconds".into(),
+        "1".into(),
+    ];
+    Proc::spawn("worker", &args, root.join(format!("worker-{name}.log")))
+}
+
+/// A tiny sweep spec on the anymal preset.
+pub fn tiny_spec(w1: &[f64], w2: &[f64], epochs: u32) -> String {
+    format!(
+        "name = \"e2e\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\nw1 = {{ values = {w1:?} }}\nw2 = {{ values = {w2:?} }}\n\
+         agents_per_cell = 4\nepochs = {epochs}\ncheckpoint_every = 1\nseed = 3\neval = {{ robots = 2, seconds = 1.0 }}\n"
+    )
+}
+
+pub async fn create(c: &mut SweepServiceClient<Channel>, toml: String) -> pb::Sweep {
+    c.create_sweep(pb::CreateSweepRequest { spec: Some(pb::create_sweep_request::Spec::Toml(toml)) })
+        .await
+        .expect("create sweep")
+        .into_inner()
+}
+
+/// Waits until the sweep is no longer running; returns it.
+pub async fn wait_done(coord: &Coord, id: i64, timeout: Duration, logs: &[&Proc]) -> pb::Sweep {
+    let start = Instant::now();
+    loop {
+        if let Ok(mut c) = tokio::time::timeout(Duration::from_secs(5), coord.sweeps()).await {
+            if let Ok(s) = c.get_sweep(pb::GetSweepRequest { sweep_id: id }).await {
+                let s = s.into_inner();
+                if s.state != pb::SweepState::Running as i32 {
+                    return s;
+                }
+            }
+        }
+        if start.elapsed() > timeout {
+            for p in logs {
+                eprintln!("---- {}\n{}", p.log.display(), tail(&p.log_text(), 40));
+            }
+            panic!("sweep {id} not finished after {timeout:?}");
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+}
+
+pub fn tail(s: &str, n: usize) -> String {
+    let lines: Vec<&str> = s.lines().collect();
+    lines[lines.len().saturating_sub(n)..].join("\n")
+}
+
+pub fn sha256_file(p: &Path) -> String {
+    use sha2::Digest;
+    hex::encode(sha2::Sha256::digest(std::fs::read(p).expect("read file")))
+}

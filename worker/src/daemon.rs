@@ -1,0 +1,497 @@
+//! `worker --connect URL`: the worker daemon. It registers with the coordinator, leases
+//! one cell per slot, trains it with [`train_cell`] on a dedicated OS thread, and streams
+//! epoch metrics, checkpoints (chunked, sha256) and the result back. Every delivery is
+//! retried with backoff while the coordinator is away, so training never waits for the
+//! network and nothing is lost; a re-leased cell resumes from the checkpoint its lease
+//! names.
+
+use crate::train::{train_cell, CellOutcome, CellRunConfig, EpochMetrics, TrainObserver};
+use crate::{Error, Result};
+use gaitsweep_core::pb::{self, worker_service_client::WorkerServiceClient};
+use gaitsweep_core::{bearer, AUTH_HEADER};
+use sha2::{Digest, Sha256};
+use std::collections::HashMap;
+use std::future::Future;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::mpsc;
+use tonic::metadata::{Ascii, MetadataValue};
+use tonic::service::interceptor::InterceptedService;
+use tonic::transport::{Certificate, Channel, ClientTlsConfig, Endpoint};
+use tonic::{Code, Status};
+
+/// Bytes per upload message.
+const CHUNK: usize = 256 * 1024;
+
+/// Command-line arguments of the worker daemon.
+#[derive(clap::Args, Debug, Clone)]
+pub struct DaemonArgs {
+    /// Coordinator URL (http://HOST:PORT, or https:// with TLS).
+    #[arg(long, env = "GAITSWEEP_URL")]
+    pub connect: String,
+    /// Cells to train concurrently.
+    #[arg(long, default_value_t = 1)]
+    pub slots: usize,
+    /// Training device: cpu, cuda or cuda:N.
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
+    /// Threads for libtorch and the simulation (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Access token of the coordinator.
+    #[arg(long, env = "GAITSWEEP_TOKEN")]
+    pub token: Option<String>,
+    /// PEM CA certificate to trust for https:// URLs.
+    #[arg(long)]
+    pub tls_ca: Option<PathBuf>,
+    /// Directory for checkpoints in progress (default: a directory under the system temp dir).
+    #[arg(long)]
+    pub work_dir: Option<PathBuf>,
+    /// Longest wait between retries when the coordinator is unreachable, seconds.
+    #[arg(long, default_value_t = 10.0)]
+    pub max_backoff_seconds: f64,
+}
+
+/// Adds the access token to every call.
+#[derive(Clone)]
+pub struct Auth(Option<MetadataValue<Ascii>>);
+
+impl tonic::service::Interceptor for Auth {
+    fn call(&mut self, mut req: tonic::Request<()>) -> std::result::Result<tonic::Request<()>, Status> {
+        if let Some(t) = &self.0 {
+            req.metadata_mut().insert(AUTH_HEADER, t.clone());
+        }
+        Ok(req)
+    }
+}
+
+type Client = WorkerServiceClient<InterceptedService<Channel, Auth>>;
+
+/// Runs the daemon on its own tokio runtime until Ctrl-C.
+pub fn run_blocking(args: DaemonArgs) -> Result<()> {
+    if let Some(n) = args.threads {
+        // The simulation's rayon pool reads this before its first use.
+        std::env::set_var("RAYON_NUM_THREADS", n.to_string());
+    }
+    crate::cli::configure_threads(args.threads);
+    let rt = tokio::runtime::Runtime::new().map_err(Error::io("start the tokio runtime"))?;
+    rt.block_on(run(args))
+}
+
+/// Runs the daemon until Ctrl-C. Leases held at exit expire on the coordinator and are
+/// resumed elsewhere from their last checkpoint.
+pub async fn run(args: DaemonArgs) -> Result<()> {
+    let device = crate::cli::parse_device(&args.device)?;
+    let client = connect(&args)?;
+    let backoff = Backoff::new(Duration::from_secs_f64(args.max_backoff_seconds.max(0.1)));
+    let work_dir = args
+        .work_dir
+        .clone()
+        .unwrap_or_else(|| std::env::temp_dir().join(format!("gaitsweep-worker-{}", std::process::id())));
+    std::fs::create_dir_all(work_dir.join("cache")).map_err(Error::io(format!("create {}", work_dir.display())))?;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u32;
+    let hostname = std::fs::read_to_string("/etc/hostname").map(|s| s.trim().to_string()).unwrap_or_default();
+    let reg = pb::RegisterRequest {
+        hostname,
+        cores,
+        device: args.device.clone(),
+        slots: args.slots as u32,
+        version: env!("CARGO_PKG_VERSION").to_string(),
+    };
+    let reg = retry("register", &backoff, None, || {
+        let mut c = client.clone();
+        let r = reg.clone();
+        async move { c.register(r).await }
+    })
+    .await
+    .map_err(|s| Error::Config(format!("the coordinator refused registration: {}", s.message())))?;
+    let ctx = Arc::new(Ctx {
+        client,
+        worker_id: reg.worker_id.clone(),
+        heartbeat: Duration::from_millis(reg.heartbeat_interval_ms.max(100) as u64),
+        backoff,
+        device,
+        work_dir,
+    });
+    tracing::info!(worker = %reg.worker_id, slots = args.slots, device = %args.device, url = %args.connect, "worker registered");
+    let mut slots = tokio::task::JoinSet::new();
+    for slot in 0..args.slots.max(1) as u32 {
+        slots.spawn(slot_loop(ctx.clone(), slot));
+    }
+    tokio::select! {
+        _ = tokio::signal::ctrl_c() => tracing::info!("interrupted: leases in progress will expire and resume elsewhere"),
+        Some(r) = slots.join_next() => if let Err(e) = r { tracing::error!(error = %e, "slot task ended") },
+    }
+    Ok(())
+}
+
+fn connect(args: &DaemonArgs) -> Result<Client> {
+    let bad = |e: &dyn std::fmt::Display| Error::Config(format!("--connect {:?}: {e}", args.connect));
+    let mut ep = Endpoint::from_shared(args.connect.clone())
+        .map_err(|e| bad(&e))?
+        .connect_timeout(Duration::from_secs(5))
+        .tcp_nodelay(true);
+    if args.connect.starts_with("https://") {
+        let mut tls = ClientTlsConfig::new();
+        if let Some(ca) = &args.tls_ca {
+            let pem = std::fs::read(ca).map_err(Error::io(format!("read --tls-ca {}", ca.display())))?;
+            tls = tls.ca_certificate(Certificate::from_pem(pem));
+        }
+        ep = ep.tls_config(tls).map_err(|e| bad(&e))?;
+    }
+    let token = match &args.token {
+        Some(t) => Some(bearer(t).parse().map_err(|_| Error::Config("--token has characters not allowed in metadata".into()))?),
+        None => None,
+    };
+    Ok(WorkerServiceClient::with_interceptor(ep.connect_lazy(), Auth(token)).max_decoding_message_size(64 << 20))
+}
+
+struct Ctx {
+    client: Client,
+    worker_id: String,
+    heartbeat: Duration,
+    backoff: Backoff,
+    device: tch::Device,
+    work_dir: PathBuf,
+}
+
+/// Exponential backoff from 200 ms to a cap.
+#[derive(Clone, Copy)]
+struct Backoff {
+    max: Duration,
+}
+
+impl Backoff {
+    fn new(max: Duration) -> Self {
+        Self { max }
+    }
+
+    fn delay(&self, attempt: u32) -> Duration {
+        let base = Duration::from_millis(200).saturating_mul(1 << attempt.min(10));
+        let jitter = Duration::from_millis(rand::random::<u64>() % 100);
+        base.min(self.max) + jitter
+    }
+}
+
+/// Whether a failed call may succeed later (the coordinator is away or busy).
+fn transient(s: &Status) -> bool {
+    matches!(s.code(), Code::Unavailable | Code::DeadlineExceeded | Code::Unknown | Code::Aborted | Code::Internal | Code::Cancelled)
+}
+
+/// Calls `f` until it succeeds, fails permanently, or `stop` is set.
+async fn retry<T, F, Fut>(what: &str, backoff: &Backoff, stop: Option<&AtomicBool>, mut f: F) -> std::result::Result<T, Status>
+where
+    F: FnMut() -> Fut,
+    Fut: Future<Output = std::result::Result<tonic::Response<T>, Status>>,
+{
+    let mut attempt = 0;
+    loop {
+        match f().await {
+            Ok(r) => {
+                if attempt > 0 {
+                    tracing::info!(call = what, attempts = attempt + 1, "coordinator reachable again, delivered");
+                }
+                return Ok(r.into_inner());
+            }
+            Err(s) if transient(&s) && !stop.is_some_and(|s| s.load(Ordering::Relaxed)) => {
+                let d = backoff.delay(attempt);
+                if attempt == 0 || attempt % 10 == 0 {
+                    tracing::warn!(call = what, code = ?s.code(), error = %s.message(), retry_in_ms = d.as_millis() as u64, "coordinator unreachable, retrying");
+                }
+                attempt += 1;
+                tokio::time::sleep(d).await;
+            }
+            Err(s) => return Err(s),
+        }
+    }
+}
+
+async fn slot_loop(ctx: Arc<Ctx>, slot: u32) {
+    loop {
+        let req = pb::LeaseRequest { worker_id: ctx.worker_id.clone(), slot };
+        let resp = retry("lease", &ctx.backoff, None, || {
+            let mut c = ctx.client.clone();
+            let r = req.clone();
+            async move { c.lease(r).await }
+        })
+        .await;
+        match resp {
+            Ok(pb::LeaseResponse { lease: Some(lease), .. }) => {
+                let id = lease.lease_id;
+                if let Err(e) = run_lease(&ctx, slot, lease).await {
+                    tracing::error!(slot, lease = id, error = %e, "lease ended with an error");
+                }
+            }
+            Ok(r) => tokio::time::sleep(Duration::from_millis(r.retry_after_ms.clamp(100, 10_000) as u64)).await,
+            Err(s) => {
+                tracing::error!(slot, code = ?s.code(), error = %s.message(), "cannot lease cells, retrying in 5 s");
+                tokio::time::sleep(Duration::from_secs(5)).await;
+            }
+        }
+    }
+}
+
+/// What the training thread tells the async side, in order.
+enum Event {
+    Epoch(EpochMetrics),
+    Checkpoint(u32, PathBuf),
+    Done(Result<CellOutcome>),
+}
+
+struct Bridge {
+    tx: mpsc::UnboundedSender<Event>,
+    stop: Arc<AtomicBool>,
+}
+
+impl TrainObserver for Bridge {
+    fn on_epoch(&mut self, m: &EpochMetrics) {
+        let _ = self.tx.send(Event::Epoch(m.clone()));
+    }
+    fn on_checkpoint(&mut self, epoch: u32, path: &Path) {
+        let _ = self.tx.send(Event::Checkpoint(epoch, path.to_path_buf()));
+    }
+    fn should_stop(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+}
+
+async fn run_lease(ctx: &Ctx, slot: u32, lease: pb::Lease) -> Result<()> {
+    let id = lease.lease_id;
+    let task = lease.task.clone().ok_or_else(|| Error::Config("lease without a task".into()))?;
+    let cell = task.cell.clone().unwrap_or_default();
+    let terrain = cell.terrain.parse().map_err(|_| Error::Config(format!("unknown terrain {:?} in lease", cell.terrain)))?;
+    let dir = ctx.work_dir.join(format!("lease-{id}"));
+    let stop = Arc::new(AtomicBool::new(false));
+    let resume_from = match &lease.resume_from {
+        Some(ck) => Some(download(ctx, ck, &stop).await?),
+        None => None,
+    };
+    tracing::info!(slot, lease = id, cell = cell.cell_id, w1 = cell.w1, w2 = cell.w2, terrain = %cell.terrain,
+        epochs = task.epochs, resume_epoch = lease.resume_from.as_ref().map(|c| c.epoch), "training cell");
+    let cfg = CellRunConfig {
+        robot: task.robot.clone(),
+        terrain,
+        difficulty: task.difficulty.map(|d| d.min(9) as u8),
+        w1: cell.w1,
+        w2: cell.w2,
+        agents: task.agents as usize,
+        epochs: task.epochs,
+        seed: cell.seed,
+        device: ctx.device,
+        checkpoint_every: task.checkpoint_every,
+        out_dir: dir.clone(),
+        resume_from,
+        ppo_overrides: task.ppo_overrides.clone(),
+        eval_robots: if task.eval_robots == 0 { 8 } else { task.eval_robots as usize },
+        eval_seconds: if task.eval_seconds == 0.0 { 10.0 } else { task.eval_seconds },
+    };
+    let (tx, mut rx) = mpsc::unbounded_channel();
+    let bridge_tx = tx.clone();
+    let thread_stop = stop.clone();
+    std::thread::Builder::new()
+        .name(format!("train-slot-{slot}"))
+        .spawn(move || {
+            let mut bridge = Bridge { tx: bridge_tx, stop: thread_stop };
+            let out = train_cell(&cfg, &mut bridge);
+            let _ = bridge.tx.send(Event::Done(out));
+        })
+        .map_err(Error::io("spawn the training thread"))?;
+    drop(tx);
+
+    let beat = tokio::spawn(heartbeat_loop(ctx.client.clone(), ctx.worker_id.clone(), id, ctx.heartbeat, stop.clone()));
+    let result = deliver(ctx, id, task.epochs, &mut rx, &stop).await;
+    beat.abort();
+    if result.is_ok() {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    result
+}
+
+/// Renews the lease; sets `stop` when the coordinator says the lease is lost or cancelled.
+async fn heartbeat_loop(mut client: Client, worker_id: String, lease: i64, every: Duration, stop: Arc<AtomicBool>) {
+    let mut tick = tokio::time::interval(every);
+    loop {
+        tick.tick().await;
+        let req = pb::HeartbeatRequest { worker_id: worker_id.clone(), lease_ids: vec![lease] };
+        match client.heartbeat(req).await {
+            Ok(r) => {
+                let status = r.into_inner().leases.first().map(|l| l.status()).unwrap_or(pb::LeaseStatus::Lost);
+                if status != pb::LeaseStatus::Active {
+                    tracing::warn!(lease, status = ?status, "coordinator withdrew the lease, stopping the cell");
+                    stop.store(true, Ordering::Relaxed);
+                    return;
+                }
+            }
+            Err(s) => tracing::debug!(lease, code = ?s.code(), "heartbeat failed, training continues"),
+        }
+    }
+}
+
+/// Delivers the training thread's events in order until it is done.
+async fn deliver(ctx: &Ctx, lease: i64, epochs: u32, rx: &mut mpsc::UnboundedReceiver<Event>, stop: &AtomicBool) -> Result<()> {
+    let mut uploaded: HashMap<PathBuf, (String, u64)> = HashMap::new();
+    let mut closed = false; // the coordinator refused further reports for this lease
+    let closed_by = |s: &Status| {
+        tracing::warn!(lease, code = ?s.code(), error = %s.message(), "coordinator refused a report, stopping the cell");
+        stop.store(true, Ordering::Relaxed);
+    };
+    while let Some(ev) = rx.recv().await {
+        match ev {
+            Event::Epoch(m) => {
+                tracing::info!(lease, epoch = m.epoch, epochs, mean_return = m.values.get("mean_return").copied(), "epoch");
+                if closed {
+                    continue;
+                }
+                let req = pb::ReportProgressRequest { lease_id: lease, epochs: vec![pb::EpochMetrics { epoch: m.epoch, values: m.values }] };
+                if let Err(s) = retry("report_progress", &ctx.backoff, None, || {
+                    let mut c = ctx.client.clone();
+                    let r = req.clone();
+                    async move { c.report_progress(r).await }
+                })
+                .await
+                {
+                    closed = true;
+                    closed_by(&s);
+                }
+            }
+            Event::Checkpoint(epoch, path) => {
+                if closed {
+                    continue;
+                }
+                match upload(ctx, lease, epoch, &path).await {
+                    Ok(v) => {
+                        uploaded.insert(path, v);
+                    }
+                    Err(UploadError::Refused(s)) => {
+                        closed = true;
+                        closed_by(&s);
+                    }
+                    Err(UploadError::Local(e)) => tracing::warn!(lease, epoch, error = %e, "could not read a checkpoint, skipping it"),
+                }
+            }
+            Event::Done(Ok(out)) => {
+                if closed {
+                    return Ok(());
+                }
+                let sha = match uploaded.get(&out.final_checkpoint) {
+                    Some((sha, _)) => Some(sha.clone()),
+                    None => match upload(ctx, lease, out.epochs, &out.final_checkpoint).await {
+                        Ok((sha, _)) => Some(sha),
+                        Err(UploadError::Refused(s)) => {
+                            closed_by(&s);
+                            return Ok(());
+                        }
+                        Err(UploadError::Local(e)) => {
+                            tracing::warn!(lease, error = %e, "final checkpoint unreadable, reporting the score without it");
+                            None
+                        }
+                    },
+                };
+                let req = pb::ReportResultRequest {
+                    lease_id: lease,
+                    score: Some((&out.score).into()),
+                    epochs: out.epochs,
+                    final_checkpoint_sha256: sha.unwrap_or_default(),
+                };
+                match retry("report_result", &ctx.backoff, None, || {
+                    let mut c = ctx.client.clone();
+                    let r = req.clone();
+                    async move { c.report_result(r).await }
+                })
+                .await
+                {
+                    Ok(r) => tracing::info!(lease, score = out.score.score, duplicate = r.duplicate, "cell done, result delivered"),
+                    Err(s) => tracing::warn!(lease, code = ?s.code(), error = %s.message(), "result refused"),
+                }
+                return Ok(());
+            }
+            Event::Done(Err(e)) => {
+                if stop.load(Ordering::Relaxed) {
+                    tracing::info!(lease, "cell stopped");
+                    return Ok(());
+                }
+                tracing::error!(lease, error = %e, "training failed");
+                let req = pb::FailCellRequest { lease_id: lease, error: e.to_string() };
+                let _ = retry("fail_cell", &ctx.backoff, None, || {
+                    let mut c = ctx.client.clone();
+                    let r = req.clone();
+                    async move { c.fail_cell(r).await }
+                })
+                .await;
+                return Err(e);
+            }
+        }
+    }
+    Err(Error::Config("the training thread ended without a result".into()))
+}
+
+enum UploadError {
+    /// The coordinator refused the upload for good.
+    Refused(Status),
+    /// The file could not be read.
+    Local(Error),
+}
+
+/// Uploads one checkpoint file (header, then chunks) with retries; returns its sha256 and size.
+async fn upload(ctx: &Ctx, lease: i64, epoch: u32, path: &Path) -> std::result::Result<(String, u64), UploadError> {
+    let bytes = tokio::fs::read(path).await.map_err(|e| UploadError::Local(Error::io(format!("read checkpoint {}", path.display()))(e)))?;
+    let sha = hex::encode(Sha256::digest(&bytes));
+    let bytes = Arc::new(bytes);
+    let header = pb::UploadHeader { lease_id: lease, epoch, sha256: sha.clone(), size: bytes.len() as u64 };
+    retry("upload_checkpoint", &ctx.backoff, None, || {
+        let mut c = ctx.client.clone();
+        let msgs = upload_messages(header.clone(), bytes.clone());
+        async move { c.upload_checkpoint(tokio_stream::iter(msgs)).await }
+    })
+    .await
+    .map_err(UploadError::Refused)?;
+    tracing::info!(lease, epoch, sha256 = %sha, size = bytes.len(), "checkpoint uploaded");
+    Ok((sha, bytes.len() as u64))
+}
+
+/// The messages of one upload: the header, then the file in chunks.
+pub fn upload_messages(header: pb::UploadHeader, bytes: Arc<Vec<u8>>) -> Vec<pb::UploadCheckpointRequest> {
+    use pb::upload_checkpoint_request::Part;
+    let mut msgs = vec![pb::UploadCheckpointRequest { part: Some(Part::Header(header)) }];
+    msgs.extend(bytes.chunks(CHUNK).map(|c| pb::UploadCheckpointRequest { part: Some(Part::Chunk(pb::CheckpointChunk { data: c.to_vec() })) }));
+    msgs
+}
+
+/// Downloads the checkpoint a lease resumes from into the cache (verifying its sha256).
+async fn download(ctx: &Ctx, ck: &pb::CheckpointRef, stop: &AtomicBool) -> Result<PathBuf> {
+    let path = ctx.work_dir.join("cache").join(format!("{}.safetensors", ck.sha256));
+    if path.is_file() {
+        return Ok(path);
+    }
+    let mut attempt = 0;
+    loop {
+        let mut c = ctx.client.clone();
+        let res: std::result::Result<Vec<u8>, Status> = async {
+            let mut s = c.download_checkpoint(pb::DownloadCheckpointRequest { sha256: ck.sha256.clone() }).await?.into_inner();
+            let mut bytes = Vec::with_capacity(ck.size as usize);
+            while let Some(chunk) = s.message().await? {
+                bytes.extend_from_slice(&chunk.data);
+            }
+            Ok(bytes)
+        }
+        .await;
+        match res {
+            Ok(bytes) if hex::encode(Sha256::digest(&bytes)) == ck.sha256 => {
+                let tmp = path.with_extension("part");
+                std::fs::write(&tmp, &bytes).map_err(Error::io(format!("write {}", tmp.display())))?;
+                std::fs::rename(&tmp, &path).map_err(Error::io(format!("move {}", path.display())))?;
+                tracing::info!(sha256 = %ck.sha256, epoch = ck.epoch, "resume checkpoint downloaded");
+                return Ok(path);
+            }
+            Ok(_) => tracing::warn!(sha256 = %ck.sha256, "downloaded checkpoint does not match its sha256, retrying"),
+            Err(s) if !transient(&s) || stop.load(Ordering::Relaxed) => {
+                return Err(Error::Config(format!("cannot download checkpoint {}: {}", ck.sha256, s.message())))
+            }
+            Err(_) => {}
+        }
+        tokio::time::sleep(ctx.backoff.delay(attempt)).await;
+        attempt += 1;
+    }
+}

@@ -1,0 +1,217 @@
+//! The PPO update (rsl_rl's `PPO.update`): mini-batches over several learning epochs,
+//! clipped surrogate, clipped value loss, entropy bonus, KL-adaptive learning rate and
+//! gradient-norm clipping.
+
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use tch::{Device, Kind, Tensor};
+
+use super::storage::Batch;
+use super::{non_finite, ActorCritic, Adam, ObsNormalizer, PpoParams};
+use crate::Result;
+
+/// Bounds of the adaptive learning rate (rsl_rl's).
+const LR_MIN: f64 = 1e-5;
+const LR_MAX: f64 = 1e-2;
+
+/// Averages over the mini-batch updates of one epoch.
+#[derive(Clone, Debug, Default)]
+pub struct UpdateStats {
+    /// Value-function loss.
+    pub value_loss: f64,
+    /// Clipped surrogate loss.
+    pub surrogate_loss: f64,
+    /// Policy entropy.
+    pub entropy: f64,
+    /// KL divergence between the rollout policy and the updated one.
+    pub kl: f64,
+    /// Gradient norm before clipping.
+    pub grad_norm: f64,
+    /// Learning rate after the update.
+    pub learning_rate: f64,
+    /// Mean action standard deviation after the update.
+    pub action_std: f64,
+}
+
+/// Policy, value function, optimiser and observation normaliser of one cell.
+#[derive(Debug)]
+pub struct Ppo {
+    /// Hyperparameters.
+    pub params: PpoParams,
+    /// The networks.
+    pub model: ActorCritic,
+    /// Adam over `model.named_parameters()`.
+    pub optim: Adam,
+    /// Running observation statistics.
+    pub normalizer: ObsNormalizer,
+    /// Where the networks live.
+    pub device: Device,
+}
+
+impl Ppo {
+    /// Fresh networks initialised from `seed`.
+    pub fn new(
+        obs_dim: usize,
+        act_dim: usize,
+        params: PpoParams,
+        device: Device,
+        seed: u64,
+    ) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let model = ActorCritic::new(
+            obs_dim as i64,
+            act_dim as i64,
+            &params.actor_hidden,
+            &params.critic_hidden,
+            params.init_noise_std,
+            device,
+            &mut rng,
+        );
+        let optim = Adam::new(
+            model
+                .named_parameters()
+                .into_iter()
+                .map(|(_, t)| t)
+                .collect(),
+            params.learning_rate,
+        );
+        Self {
+            params,
+            model,
+            optim,
+            normalizer: ObsNormalizer::new(obs_dim),
+            device,
+        }
+    }
+
+    /// Deterministic actions (the means) for raw observations `[N * obs_dim]`, with the
+    /// current normalisation and no statistics update: the evaluation policy.
+    pub fn act_deterministic(&self, obs: &[f32], actions: &mut [f32]) -> Result<()> {
+        let dim = self.normalizer.dim() as i64;
+        let (mean, denom) = self.normalizer.tensors(self.device);
+        let out = tch::no_grad(|| -> Result<Tensor> {
+            let x = Tensor::from_slice(obs)
+                .view([-1, dim])
+                .to_device(self.device);
+            let x = ObsNormalizer::apply(&x, &mean, &denom);
+            Ok(self
+                .model
+                .action_mean(&x)
+                .to_device(Device::Cpu)
+                .flatten(0, -1))
+        })?;
+        out.f_copy_data(actions, actions.len())?;
+        Ok(())
+    }
+
+    /// Runs the learning epochs over `batch` (mini-batches shuffled with `rng`) and
+    /// returns averaged statistics.
+    pub fn update(&mut self, batch: &Batch, rng: &mut ChaCha8Rng) -> Result<UpdateStats> {
+        let p = self.params.clone();
+        let n = batch.obs.size()[0];
+        let mb = n / p.num_mini_batches as i64;
+        let old_log_std = self.model.log_std.detach().copy();
+        let old_var = (&old_log_std * 2.0).exp();
+        let mut stats = UpdateStats::default();
+        let mut updates = 0.0;
+        for _ in 0..p.num_learning_epochs {
+            let mut order: Vec<i64> = (0..n).collect();
+            order.shuffle(rng);
+            let perm = Tensor::from_slice(&order).to_device(self.device);
+            for i in 0..p.num_mini_batches as i64 {
+                let idx = perm.narrow(0, i * mb, mb);
+                let pick = |t: &Tensor| t.index_select(0, &idx);
+                let (obs, actions, old_logp, old_mean) = (
+                    pick(&batch.obs),
+                    pick(&batch.actions),
+                    pick(&batch.log_probs),
+                    pick(&batch.means),
+                );
+                let (old_values, returns, adv) = (
+                    pick(&batch.values),
+                    pick(&batch.returns),
+                    pick(&batch.advantages),
+                );
+
+                let mean = self.model.action_mean(&obs);
+                let values = self.model.value(&obs);
+                let logp = self.model.log_prob(&mean, &actions);
+                let entropy = self.model.entropy();
+
+                let kl = tch::no_grad(|| {
+                    let log_std = &self.model.log_std;
+                    let var = (log_std * 2.0).exp();
+                    let per_dim = (log_std - &old_log_std)
+                        + (&old_var + (&old_mean - &mean).square()) / (var * 2.0)
+                        - 0.5;
+                    per_dim
+                        .sum_dim_intlist(-1, false, Kind::Float)
+                        .mean(Kind::Float)
+                })
+                .double_value(&[]);
+                if !kl.is_finite() {
+                    return Err(non_finite("kl"));
+                }
+                if p.adaptive_lr && p.desired_kl > 0.0 {
+                    if kl > 2.0 * p.desired_kl {
+                        self.optim.lr = (self.optim.lr / 1.5).max(LR_MIN);
+                    } else if kl < p.desired_kl / 2.0 && kl > 0.0 {
+                        self.optim.lr = (self.optim.lr * 1.5).min(LR_MAX);
+                    }
+                }
+
+                let ratio = (&logp - &old_logp).exp();
+                let surr = -&adv * &ratio;
+                let surr_clipped = -&adv * ratio.clamp(1.0 - p.clip_param, 1.0 + p.clip_param);
+                let surrogate = surr.max_other(&surr_clipped).mean(Kind::Float);
+
+                let value_loss = if p.clip_value_loss {
+                    let clipped =
+                        &old_values + (&values - &old_values).clamp(-p.clip_param, p.clip_param);
+                    let a = (&values - &returns).square();
+                    let b = (clipped - &returns).square();
+                    a.max_other(&b).mean(Kind::Float)
+                } else {
+                    (&values - &returns).square().mean(Kind::Float)
+                };
+
+                let loss = &surrogate + &value_loss * p.value_loss_coef - &entropy * p.entropy_coef;
+                let loss_v = loss.double_value(&[]);
+                if !loss_v.is_finite() {
+                    let which = [
+                        ("surrogate loss", surrogate.double_value(&[])),
+                        ("value loss", value_loss.double_value(&[])),
+                        ("entropy", entropy.double_value(&[])),
+                    ]
+                    .into_iter()
+                    .find(|(_, v)| !v.is_finite())
+                    .map_or("loss", |(q, _)| q);
+                    return Err(non_finite(which));
+                }
+                self.optim.zero_grad();
+                loss.backward();
+                let grad_norm = self.optim.clip_grad_norm(p.max_grad_norm);
+                if !grad_norm.is_finite() {
+                    return Err(non_finite("gradients"));
+                }
+                self.optim.step();
+
+                stats.value_loss += value_loss.double_value(&[]);
+                stats.surrogate_loss += surrogate.double_value(&[]);
+                stats.entropy += entropy.double_value(&[]);
+                stats.kl += kl;
+                stats.grad_norm += grad_norm;
+                updates += 1.0;
+            }
+        }
+        stats.value_loss /= updates;
+        stats.surrogate_loss /= updates;
+        stats.entropy /= updates;
+        stats.kl /= updates;
+        stats.grad_norm /= updates;
+        stats.learning_rate = self.optim.lr;
+        stats.action_std = self.model.log_std.exp().mean(Kind::Float).double_value(&[]);
+        Ok(stats)
+    }
+}

@@ -1,0 +1,134 @@
+//! PPO as legged_gym's rsl_rl does it, on libtorch: a Gaussian actor with a learned
+//! log-std, a separate critic, GAE(lambda), clipped surrogate and value losses, an entropy
+//! bonus, an adaptive learning rate from the KL divergence, gradient-norm clipping and
+//! running observation normalisation.
+//!
+//! The trainer is generic over [`VecEnvLike`] so that it runs on the rapier simulation and
+//! on the cheap [`toy`] task that the tests use to prove that learning works.
+
+pub mod adam;
+mod algo;
+mod net;
+mod normalizer;
+pub mod runner;
+mod storage;
+pub mod toy;
+
+pub use adam::Adam;
+pub use algo::{Ppo, UpdateStats};
+pub use net::{ActorCritic, Mlp};
+pub use normalizer::{ObsNormalizer, NORM_CLIP, NORM_EPS};
+pub use runner::{EpochStats, Runner};
+
+use crate::Result;
+
+/// One step of a vectorised environment, borrowed from it.
+#[derive(Debug)]
+pub struct StepView<'a> {
+    /// Observations after the step (done robots already reset), `[N * obs_dim]`.
+    pub obs: &'a [f32],
+    /// Rewards of the step, `[N]`.
+    pub rewards: &'a [f32],
+    /// Episode ended (fall or timeout), `[N]`.
+    pub dones: &'a [bool],
+    /// Episode ended only because of its time limit, `[N]`: the critic bootstraps these.
+    pub timeouts: &'a [bool],
+    /// Weighted reward terms of the step, `[N * n_terms]` (may be empty).
+    pub terms: &'a [f32],
+}
+
+/// What the trainer needs from a vectorised environment.
+pub trait VecEnvLike {
+    /// Number of robots stepped together.
+    fn num_envs(&self) -> usize;
+    /// Length of one robot's observation.
+    fn obs_dim(&self) -> usize;
+    /// Length of one robot's action.
+    fn act_dim(&self) -> usize;
+    /// Resets every robot from `seed` and returns the observations `[N * obs_dim]`.
+    fn reseed(&mut self, seed: u64) -> Result<Vec<f32>>;
+    /// Applies `actions` `[N * act_dim]` and advances one policy step.
+    fn step(&mut self, actions: &[f32]) -> Result<StepView<'_>>;
+    /// Names of the reward terms in [`StepView::terms`].
+    fn term_names(&self) -> Vec<String> {
+        Vec::new()
+    }
+    /// Per-robot curriculum levels (empty when the task has none); checkpoints keep them.
+    fn levels(&self) -> Vec<u8> {
+        Vec::new()
+    }
+    /// Restores curriculum levels (applied by the next reseed); false when unsupported.
+    fn set_levels(&mut self, _levels: &[u8]) -> bool {
+        false
+    }
+}
+
+/// PPO hyperparameters (the preset's `[ppo]` table, see `gaitsweep_sim::PpoConfig`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PpoParams {
+    /// Hidden layer sizes of the actor.
+    pub actor_hidden: Vec<i64>,
+    /// Hidden layer sizes of the critic.
+    pub critic_hidden: Vec<i64>,
+    /// Initial standard deviation of the action noise.
+    pub init_noise_std: f64,
+    /// PPO ratio clip (also the value clip).
+    pub clip_param: f64,
+    /// Discount.
+    pub gamma: f64,
+    /// GAE lambda.
+    pub lam: f64,
+    /// Weight of the value loss.
+    pub value_loss_coef: f64,
+    /// Weight of the entropy bonus.
+    pub entropy_coef: f64,
+    /// Initial Adam learning rate.
+    pub learning_rate: f64,
+    /// Target KL of the adaptive learning rate.
+    pub desired_kl: f64,
+    /// Adapt the learning rate from the KL divergence.
+    pub adaptive_lr: bool,
+    /// Gradient-norm clip.
+    pub max_grad_norm: f64,
+    /// Passes over each rollout.
+    pub num_learning_epochs: usize,
+    /// Mini-batches per pass.
+    pub num_mini_batches: usize,
+    /// Policy steps per robot per epoch.
+    pub steps_per_env: usize,
+    /// Clip the value loss around the rollout's values.
+    pub clip_value_loss: bool,
+}
+
+impl Default for PpoParams {
+    /// legged_gym's defaults for ANYmal.
+    fn default() -> Self {
+        Self {
+            actor_hidden: vec![512, 256, 128],
+            critic_hidden: vec![512, 256, 128],
+            init_noise_std: 1.0,
+            clip_param: 0.2,
+            gamma: 0.99,
+            lam: 0.95,
+            value_loss_coef: 1.0,
+            entropy_coef: 0.01,
+            learning_rate: 1e-3,
+            desired_kl: 0.01,
+            adaptive_lr: true,
+            max_grad_norm: 1.0,
+            num_learning_epochs: 5,
+            num_mini_batches: 4,
+            steps_per_env: 24,
+            clip_value_loss: true,
+        }
+    }
+}
+
+/// Error for a NaN or infinity in `quantity`; the runner names the cell and epoch.
+pub(crate) fn non_finite(quantity: &str) -> crate::Error {
+    crate::Error::NonFinite {
+        cell: String::new(),
+        epoch: 0,
+        quantity: quantity.to_string(),
+    }
+}

@@ -1,0 +1,175 @@
+//! A short `train_cell` on the real simulator: metrics, checkpoints, a gait score, and a
+//! resumed run ending bit-identical to an uninterrupted one.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use gaitsweep_sim::TerrainKind;
+use gaitsweep_worker::checkpoint::Checkpoint;
+use gaitsweep_worker::train::{train_cell, CellRunConfig, EpochMetrics, TrainObserver};
+
+#[derive(Default)]
+struct Collect {
+    epochs: Vec<EpochMetrics>,
+    checkpoints: Vec<(u32, PathBuf)>,
+}
+
+impl TrainObserver for Collect {
+    fn on_epoch(&mut self, m: &EpochMetrics) {
+        self.epochs.push(m.clone());
+    }
+    fn on_checkpoint(&mut self, epoch: u32, path: &Path) {
+        self.checkpoints.push((epoch, path.to_path_buf()));
+    }
+}
+
+fn cfg(out: &Path, epochs: u32, resume: Option<PathBuf>) -> CellRunConfig {
+    let overrides = [
+        ("steps_per_env", 8.0),
+        ("num_mini_batches", 2.0),
+        ("num_learning_epochs", 2.0),
+    ];
+    CellRunConfig {
+        robot: "anymal".into(),
+        terrain: TerrainKind::Flat,
+        difficulty: Some(0),
+        w1: 7.0,
+        w2: -6.0,
+        agents: 6,
+        epochs,
+        seed: 3,
+        device: tch::Device::Cpu,
+        checkpoint_every: 2,
+        out_dir: out.to_path_buf(),
+        resume_from: resume,
+        ppo_overrides: overrides
+            .iter()
+            .map(|(k, v)| (k.to_string(), *v))
+            .collect::<BTreeMap<_, _>>(),
+        eval_robots: 2,
+        eval_seconds: 1.0,
+    }
+}
+
+fn weights(path: &Path) -> Vec<(String, Vec<u8>)> {
+    let (tensors, _) = gaitsweep_worker::checkpoint::read_safetensors(path).unwrap();
+    tensors
+        .into_iter()
+        .map(|(k, t)| {
+            let v = Vec::<f64>::try_from(t.to_kind(tch::Kind::Double).flatten(0, -1)).unwrap();
+            (k, v.iter().flat_map(|x| x.to_le_bytes()).collect())
+        })
+        .collect()
+}
+
+#[test]
+fn train_cell_on_simulator_and_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let full = dir.path().join("full");
+    let mut obs = Collect::default();
+    let out = train_cell(&cfg(&full, 4, None), &mut obs).unwrap();
+    assert_eq!(out.epochs, 4);
+    assert_eq!(obs.epochs.len(), 4);
+    let m = &obs.epochs[0].values;
+    for key in [
+        "loss/value",
+        "loss/surrogate",
+        "kl",
+        "learning_rate",
+        "samples_per_second",
+        "time/sim",
+        "time/inference",
+        "time/update",
+        "mean_step_reward",
+    ] {
+        assert!(
+            m.get(key).is_some_and(|v| v.is_finite()),
+            "metric {key} missing in {m:?}"
+        );
+    }
+    assert!(
+        m.keys().any(|k| k.starts_with("reward/")),
+        "no reward terms in {m:?}"
+    );
+    assert_eq!(
+        obs.checkpoints.iter().map(|c| c.0).collect::<Vec<_>>(),
+        vec![2, 4]
+    );
+    assert!(out.final_checkpoint.ends_with("ckpt-000004.safetensors"));
+    assert!(full.join("ckpt-000004.json").exists());
+    assert!(
+        out.score.score.is_finite() && out.score.robots == 2,
+        "{:?}",
+        out.score
+    );
+    let score: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(full.join("score.json")).unwrap()).unwrap();
+    assert!(score["track"].is_number() && score["fall_rate"].is_number());
+
+    let resumed = dir.path().join("resumed");
+    let ckpt2 = full.join("ckpt-000002.safetensors");
+    let meta = Checkpoint::load(&ckpt2).unwrap().meta;
+    assert_eq!(
+        (meta.robot.as_str(), meta.epoch, meta.w1, meta.w2),
+        ("anymal", 2, 7.0, -6.0)
+    );
+    let mut obs2 = Collect::default();
+    let out2 = train_cell(&cfg(&resumed, 4, Some(ckpt2)), &mut obs2).unwrap();
+    assert_eq!(
+        obs2.epochs.first().map(|m| m.epoch),
+        Some(3),
+        "epoch count must continue"
+    );
+    assert_eq!(out2.epochs, 4);
+    assert!(
+        weights(&out.final_checkpoint) == weights(&out2.final_checkpoint),
+        "resumed run differs from the uninterrupted one"
+    );
+
+    let mut wrong = cfg(
+        &dir.path().join("wrong"),
+        4,
+        Some(full.join("ckpt-000002.safetensors")),
+    );
+    wrong.w1 = 2.0;
+    let e = train_cell(&wrong, &mut Collect::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("ckpt-000002.safetensors") && e.contains("cell is (w1=7, w2=-6)"),
+        "{e}"
+    );
+}
+
+/// Asks to stop once `after` epochs have been reported.
+struct StopAfter {
+    seen: u32,
+    after: u32,
+}
+
+impl TrainObserver for StopAfter {
+    fn on_epoch(&mut self, _: &EpochMetrics) {
+        self.seen += 1;
+    }
+    fn on_checkpoint(&mut self, _: u32, _: &Path) {}
+    fn should_stop(&self) -> bool {
+        self.seen >= self.after
+    }
+}
+
+#[test]
+fn stop_request_writes_a_checkpoint_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = train_cell(
+        &cfg(dir.path(), 10, None),
+        &mut StopAfter { seen: 0, after: 1 },
+    )
+    .unwrap_err();
+    match e {
+        gaitsweep_worker::Error::Stopped { epoch, checkpoint } => {
+            assert_eq!(epoch, 1);
+            assert_eq!(Checkpoint::load(&checkpoint).unwrap().meta.epoch, 1);
+        }
+        e => panic!("expected Stopped, got {e}"),
+    }
+}
