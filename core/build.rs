@@ -6,8 +6,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     std::env::set_var("PROTOC", protoc);
     let out_dir = std::path::PathBuf::from(std::env::var("OUT_DIR")?);
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../proto");
-    let files = ["types.proto", "worker.proto", "client.proto"]
-        .map(|f| root.join("gaitsweep/v1").join(f));
+    let files =
+        ["types.proto", "worker.proto", "client.proto"].map(|f| root.join("gaitsweep/v1").join(f));
     tonic_prost_build::configure()
         .file_descriptor_set_path(out_dir.join("gaitsweep_v1_descriptor.bin"))
         .btree_map(".")

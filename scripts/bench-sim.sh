@@ -25,10 +25,6 @@ TMP="$(mktemp -d)"
 trap 'rm -rf "$TMP"' EXIT
 SIMBENCH=(target/release/simbench --json --robots anymal,heavy --terrains flat,rough,stairs
           --threads 1,2 --steps "$STEPS" --extra multibody:1:1)
-# rapier's own defaults (multibody joints, 4 solver iterations, 1 PGS iteration): the
-# setting of the issue's "rapier default" anchor; anymal on rough only, to keep the run short.
-SIMBENCH_DEFAULT=(target/release/simbench --json --robots anymal --terrains rough --threads 1,2
-                  --steps "$STEPS" --no-default --extra multibody:4:1)
 MUJOCO=("$PY" bench/mujoco_bench.py --json --robots anymal,heavy --terrains flat,rough,stairs
         --threads 1,2 --steps "$STEPS")
 
@@ -36,9 +32,6 @@ load_before="$(cut -d' ' -f1-3 /proc/loadavg)"
 start=$(date +%s)
 echo "bench-sim: ${SIMBENCH[*]}" >&2
 "${SIMBENCH[@]}" | tee "$TMP/rapier.jsonl" >&2
-echo "bench-sim: ${SIMBENCH_DEFAULT[*]}" >&2
-# Its "preset" rows repeat the first run's; keep only the extra setting.
-"${SIMBENCH_DEFAULT[@]}" | tee /dev/stderr | grep -v '"setting":"preset"' >> "$TMP/rapier.jsonl"
 echo "bench-sim: ${MUJOCO[*]}" >&2
 "${MUJOCO[@]}" | tee "$TMP/mujoco.jsonl" >&2
 load_after="$(cut -d' ' -f1-3 /proc/loadavg)"
@@ -50,7 +43,7 @@ mjv="$("$PY" -c 'import mujoco; print(mujoco.__version__)')"
 
 echo "Machine: $(nproc) cores, $cpu; $(date -u '+%Y-%m-%d %H:%M UTC'); commit $rev; MuJoCo $mjv."
 echo "Load average (1/5/15 min) before: $load_before; after: $load_after; benchmark took ${elapsed} s."
-echo "Command: scripts/bench-sim.sh $*  (runs: ${SIMBENCH[*]}; ${SIMBENCH_DEFAULT[*]}; python ${MUJOCO[*]:1})"
+echo "Command: scripts/bench-sim.sh $*  (runs: ${SIMBENCH[*]}; python ${MUJOCO[*]:1})"
 echo
 "$PY" - "$TMP/rapier.jsonl" "$TMP/mujoco.jsonl" <<'EOF'
 import json, sys, tomllib
@@ -74,10 +67,7 @@ for r in rows:
         c = control(r["robot"])
         setting = f'preset: {c["joints"]}, {c["pgs_iterations"]} PGS'
     elif r["setting"] == "rapier default":
-        c = control(r["robot"])
-        setting = f'simbench "rapier default": {c["joints"]}, {c["pgs_iterations"]} PGS'
-    elif r["setting"] == "multibody:4:1":
-        setting = "rapier's defaults: multibody, 1 PGS (multibody:4:1)"
+        setting = "rapier's defaults: multibody, 1 PGS"
     else:
         backend, _, pgs = r["setting"].split(":")
         setting = f"{backend}, {pgs} PGS ({r['setting']})"

@@ -13,7 +13,9 @@ pub struct TokenCheck {
 impl TokenCheck {
     /// A check for `token` (`None`: no access control).
     pub fn new(token: Option<&str>) -> Self {
-        Self { expected: token.map(bearer) }
+        Self {
+            expected: token.map(bearer),
+        }
     }
 }
 
@@ -24,11 +26,17 @@ fn same(a: &[u8], b: &[u8]) -> bool {
 
 impl tonic::service::Interceptor for TokenCheck {
     fn call(&mut self, req: Request<()>) -> Result<Request<()>, Status> {
-        let Some(expected) = &self.expected else { return Ok(req) };
+        let Some(expected) = &self.expected else {
+            return Ok(req);
+        };
         match req.metadata().get(AUTH_HEADER) {
             Some(v) if same(v.as_bytes(), expected.as_bytes()) => Ok(req),
-            Some(_) => Err(Status::unauthenticated("the access token is wrong: pass the coordinator's --token")),
-            None => Err(Status::unauthenticated("an access token is required: pass --token (metadata authorization: Bearer TOKEN)")),
+            Some(_) => Err(Status::unauthenticated(
+                "the access token is wrong: pass the coordinator's --token",
+            )),
+            None => Err(Status::unauthenticated(
+                "an access token is required: pass --token (metadata authorization: Bearer TOKEN)",
+            )),
         }
     }
 }
@@ -41,12 +49,17 @@ mod tests {
     #[test]
     fn refuses_missing_and_wrong_tokens() {
         let mut c = TokenCheck::new(Some("s3cret"));
-        assert_eq!(c.call(Request::new(())).unwrap_err().code(), tonic::Code::Unauthenticated);
+        assert_eq!(
+            c.call(Request::new(())).unwrap_err().code(),
+            tonic::Code::Unauthenticated
+        );
         let mut r = Request::new(());
-        r.metadata_mut().insert(AUTH_HEADER, "Bearer nope".parse().unwrap());
+        r.metadata_mut()
+            .insert(AUTH_HEADER, "Bearer nope".parse().unwrap());
         assert_eq!(c.call(r).unwrap_err().code(), tonic::Code::Unauthenticated);
         let mut r = Request::new(());
-        r.metadata_mut().insert(AUTH_HEADER, "Bearer s3cret".parse().unwrap());
+        r.metadata_mut()
+            .insert(AUTH_HEADER, "Bearer s3cret".parse().unwrap());
         assert!(c.call(r).is_ok());
         assert!(TokenCheck::new(None).call(Request::new(())).is_ok());
     }

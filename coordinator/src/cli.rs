@@ -78,22 +78,34 @@ pub enum ClientCmd {
     },
 }
 
-type Auth = Box<dyn FnMut(tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> + Send + Sync>;
+type Auth =
+    Box<dyn FnMut(tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> + Send + Sync>;
 type Client = SweepServiceClient<InterceptedService<Channel, Auth>>;
 
 async fn connect(c: &Conn) -> anyhow::Result<Client> {
-    let mut ep = Channel::from_shared(c.connect.clone()).with_context(|| format!("bad --connect url {:?}", c.connect))?;
+    let mut ep = Channel::from_shared(c.connect.clone())
+        .with_context(|| format!("bad --connect url {:?}", c.connect))?;
     if c.connect.starts_with("https://") {
         let mut tls = ClientTlsConfig::new();
         if let Some(ca) = &c.tls_ca {
-            let pem = std::fs::read(ca).with_context(|| format!("read --tls-ca {}", ca.display()))?;
+            let pem =
+                std::fs::read(ca).with_context(|| format!("read --tls-ca {}", ca.display()))?;
             tls = tls.ca_certificate(Certificate::from_pem(pem));
         }
         ep = ep.tls_config(tls)?;
     }
-    let channel = ep.connect().await.with_context(|| format!("cannot reach the coordinator at {}: is it running?", c.connect))?;
+    let channel = ep.connect().await.with_context(|| {
+        format!(
+            "cannot reach the coordinator at {}: is it running?",
+            c.connect
+        )
+    })?;
     let token: Option<MetadataValue<_>> = match &c.token {
-        Some(t) => Some(bearer(t).parse().context("token has characters not allowed in metadata")?),
+        Some(t) => Some(
+            bearer(t)
+                .parse()
+                .context("token has characters not allowed in metadata")?,
+        ),
         None => None,
     };
     let auth: Auth = Box::new(move |mut req| {
@@ -109,10 +121,13 @@ async fn connect(c: &Conn) -> anyhow::Result<Client> {
 pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
     match cmd {
         ClientCmd::Create { conn, spec } => {
-            let text = std::fs::read_to_string(&spec).with_context(|| format!("read spec {}", spec.display()))?;
+            let text = std::fs::read_to_string(&spec)
+                .with_context(|| format!("read spec {}", spec.display()))?;
             let mut c = connect(&conn).await?;
             let s = c
-                .create_sweep(pb::CreateSweepRequest { spec: Some(pb::create_sweep_request::Spec::Toml(text)) })
+                .create_sweep(pb::CreateSweepRequest {
+                    spec: Some(pb::create_sweep_request::Spec::Toml(text)),
+                })
                 .await?
                 .into_inner();
             println!("created sweep {} ({} cells)", s.sweep_id, s.cells_total);
@@ -120,39 +135,77 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
         ClientCmd::List { conn } => {
             let mut c = connect(&conn).await?;
             let list = c.list_sweeps(pb::ListSweepsRequest {}).await?.into_inner();
-            println!("{:>5}  {:<24} {:<10} {:>6} {:>6} {:>6} {:>6}", "id", "name", "state", "cells", "done", "run", "failed");
+            println!(
+                "{:>5}  {:<24} {:<10} {:>6} {:>6} {:>6} {:>6}",
+                "id", "name", "state", "cells", "done", "run", "failed"
+            );
             for s in list.sweeps {
                 let name = s.spec.as_ref().map_or("", |p| p.name.as_str());
                 println!(
                     "{:>5}  {:<24} {:<10} {:>6} {:>6} {:>6} {:>6}",
-                    s.sweep_id, name, sweep_state(s.state), s.cells_total, s.cells_done, s.cells_running, s.cells_failed
+                    s.sweep_id,
+                    name,
+                    sweep_state(s.state),
+                    s.cells_total,
+                    s.cells_done,
+                    s.cells_running,
+                    s.cells_failed
                 );
             }
         }
         ClientCmd::Show { conn, sweep } => {
             let mut c = connect(&conn).await?;
-            let s = c.get_sweep(pb::GetSweepRequest { sweep_id: sweep }).await?.into_inner();
-            let cells = c.list_cells(pb::ListCellsRequest { sweep_id: sweep }).await?.into_inner().cells;
+            let s = c
+                .get_sweep(pb::GetSweepRequest { sweep_id: sweep })
+                .await?
+                .into_inner();
+            let cells = c
+                .list_cells(pb::ListCellsRequest { sweep_id: sweep })
+                .await?
+                .into_inner()
+                .cells;
             print!("{}", render_show(&s, &cells));
         }
         ClientCmd::Watch { conn, sweep } => {
             let mut c = connect(&conn).await?;
-            let mut stream = c.watch_sweep(pb::WatchSweepRequest { sweep_id: sweep }).await?.into_inner();
+            let mut stream = c
+                .watch_sweep(pb::WatchSweepRequest { sweep_id: sweep })
+                .await?
+                .into_inner();
             while let Some(ev) = stream.message().await? {
                 match ev.kind {
                     Some(Kind::Cell(cell)) => println!(
                         "cell {} (w1 {:.3}, w2 {:.3}, {}) {} attempts {}{}",
-                        cell.cell_id, cell.w1, cell.w2, cell.terrain, cell_state(cell.state), cell.attempts,
-                        cell.score.map(|s| format!(" score {:.4}", s.score)).unwrap_or_default()
+                        cell.cell_id,
+                        cell.w1,
+                        cell.w2,
+                        cell.terrain,
+                        cell_state(cell.state),
+                        cell.attempts,
+                        cell.score
+                            .map(|s| format!(" score {:.4}", s.score))
+                            .unwrap_or_default()
                     ),
                     Some(Kind::Progress(p)) => println!(
-                        "cell {} epoch {}{}", p.cell_id, p.epoch,
-                        p.mean_return.map(|r| format!(" mean return {r:.4}")).unwrap_or_default()
+                        "cell {} epoch {}{}",
+                        p.cell_id,
+                        p.epoch,
+                        p.mean_return
+                            .map(|r| format!(" mean return {r:.4}"))
+                            .unwrap_or_default()
                     ),
                     Some(Kind::Promotion(p)) => {
                         let cell = p.cell.unwrap_or_default();
-                        let on = if p.terrain.is_empty() { "overall".to_string() } else { format!("on {}", p.terrain) };
-                        println!("promoted cell {} {on} (score {:.4})", cell.cell_id, cell.score.map_or(f64::NAN, |s| s.score));
+                        let on = if p.terrain.is_empty() {
+                            "overall".to_string()
+                        } else {
+                            format!("on {}", p.terrain)
+                        };
+                        println!(
+                            "promoted cell {} {on} (score {:.4})",
+                            cell.cell_id,
+                            cell.score.map_or(f64::NAN, |s| s.score)
+                        );
                     }
                     Some(Kind::Finished(s)) => {
                         println!("sweep {} {}", s.sweep_id, sweep_state(s.state));
@@ -164,48 +217,86 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
         }
         ClientCmd::Cancel { conn, sweep } => {
             let mut c = connect(&conn).await?;
-            let s = c.cancel_sweep(pb::CancelSweepRequest { sweep_id: sweep }).await?.into_inner();
-            println!("sweep {} {}", s.sweep_id, sweep_state(s.state));
-        }
-        ClientCmd::FetchBest { conn, sweep, terrain, out, export } => {
-            let mut c = connect(&conn).await?;
-            let p = c
-                .get_promoted(pb::GetPromotedRequest { sweep_id: sweep, terrain: terrain.unwrap_or_default() })
+            let s = c
+                .cancel_sweep(pb::CancelSweepRequest { sweep_id: sweep })
                 .await?
                 .into_inner();
-            let Some(ck) = p.checkpoint else { bail!("the promoted cell has no checkpoint: its worker sent none") };
-            let mut stream = c.download_checkpoint(pb::DownloadCheckpointRequest { sha256: ck.sha256.clone() }).await?.into_inner();
+            println!("sweep {} {}", s.sweep_id, sweep_state(s.state));
+        }
+        ClientCmd::FetchBest {
+            conn,
+            sweep,
+            terrain,
+            out,
+            export,
+        } => {
+            let mut c = connect(&conn).await?;
+            let p = c
+                .get_promoted(pb::GetPromotedRequest {
+                    sweep_id: sweep,
+                    terrain: terrain.unwrap_or_default(),
+                })
+                .await?
+                .into_inner();
+            let Some(ck) = p.checkpoint else {
+                bail!("the promoted cell has no checkpoint: its worker sent none")
+            };
+            let mut stream = c
+                .download_checkpoint(pb::DownloadCheckpointRequest {
+                    sha256: ck.sha256.clone(),
+                })
+                .await?
+                .into_inner();
             let mut bytes = Vec::with_capacity(ck.size as usize);
             while let Some(chunk) = stream.message().await? {
                 bytes.extend_from_slice(&chunk.data);
             }
             let got = hex::encode(Sha256::digest(&bytes));
             if got != ck.sha256 {
-                bail!("downloaded checkpoint is corrupt (sha256 {got}, expected {}): try again", ck.sha256);
+                bail!(
+                    "downloaded checkpoint is corrupt (sha256 {got}, expected {}): try again",
+                    ck.sha256
+                );
             }
             std::fs::write(&out, &bytes).with_context(|| format!("write {}", out.display()))?;
             let cell = p.cell.unwrap_or_default();
             println!(
                 "wrote {} (cell {}, w1 {:.3}, w2 {:.3}, score {:.4})",
-                out.display(), cell.cell_id, cell.w1, cell.w2, cell.score.map_or(f64::NAN, |s| s.score)
+                out.display(),
+                cell.cell_id,
+                cell.w1,
+                cell.w2,
+                cell.score.map_or(f64::NAN, |s| s.score)
             );
             match export {
                 Some(dir) => {
                     let sibling = std::env::current_exe()?.with_file_name("worker");
-                    let worker = if sibling.is_file() { sibling } else { PathBuf::from("worker") };
+                    let worker = if sibling.is_file() {
+                        sibling
+                    } else {
+                        PathBuf::from("worker")
+                    };
                     let status = std::process::Command::new(&worker)
                         .arg("export")
                         .arg("--out")
                         .arg(&dir)
                         .arg(&out)
                         .status()
-                        .with_context(|| format!("run {} export: is the worker binary installed?", worker.display()))?;
+                        .with_context(|| {
+                            format!(
+                                "run {} export: is the worker binary installed?",
+                                worker.display()
+                            )
+                        })?;
                     if !status.success() {
                         bail!("worker export failed ({status}): see its message above");
                     }
                     println!("exported the actor to {}", dir.display());
                 }
-                None => println!("export it with `worker export --out DIR {}` or pass --export DIR", out.display()),
+                None => println!(
+                    "export it with `worker export --out DIR {}` or pass --export DIR",
+                    out.display()
+                ),
             }
         }
     }
@@ -241,17 +332,37 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
     let _ = writeln!(
         o,
         "sweep {} {:?}: robot {}, {} | {} cells: {} done, {} running, {} queued, {} failed",
-        s.sweep_id, spec.name, spec.robot, sweep_state(s.state), s.cells_total, s.cells_done, s.cells_running, s.cells_queued, s.cells_failed
+        s.sweep_id,
+        spec.name,
+        spec.robot,
+        sweep_state(s.state),
+        s.cells_total,
+        s.cells_done,
+        s.cells_running,
+        s.cells_queued,
+        s.cells_failed
     );
     for (ti, terrain) in spec.terrains.iter().enumerate() {
-        let mine: Vec<&pb::Cell> = cells.iter().filter(|c| c.terrain_index as usize == ti).collect();
+        let mine: Vec<&pb::Cell> = cells
+            .iter()
+            .filter(|c| c.terrain_index as usize == ti)
+            .collect();
         let best_here = mine
             .iter()
             .filter_map(|c| c.score.map(|sc| (c.cell_id, sc.score)))
             .filter(|x| !x.1.is_nan())
-            .fold(None::<(i64, f64)>, |b, x| if b.is_none_or(|b| x.1 > b.1) { Some(x) } else { b })
+            .fold(None::<(i64, f64)>, |b, x| {
+                if b.is_none_or(|b| x.1 > b.1) {
+                    Some(x)
+                } else {
+                    b
+                }
+            })
             .map(|b| b.0);
-        let _ = writeln!(o, "\nterrain {terrain}: gait score (rows w1, columns w2 = log10 torque weight)");
+        let _ = writeln!(
+            o,
+            "\nterrain {terrain}: gait score (rows w1, columns w2 = log10 torque weight)"
+        );
         let _ = write!(o, "{:>10}", "w1 \\ w2");
         for w2 in &s.w2_values {
             let _ = write!(o, " {:>11.3}", w2);
@@ -260,11 +371,22 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         for (i, w1) in s.w1_values.iter().enumerate() {
             let _ = write!(o, "{:>10.3}", w1);
             for j in 0..s.w2_values.len() {
-                let cell = mine.iter().find(|c| c.w1_index as usize == i && c.w2_index as usize == j);
+                let cell = mine
+                    .iter()
+                    .find(|c| c.w1_index as usize == i && c.w2_index as usize == j);
                 let text = match cell {
-                    Some(c) => match (c.score, pb::CellState::try_from(c.state).unwrap_or_default()) {
+                    Some(c) => match (
+                        c.score,
+                        pb::CellState::try_from(c.state).unwrap_or_default(),
+                    ) {
                         (Some(sc), _) => {
-                            let mark = if c.cell_id == s.best_cell_id { "*" } else if Some(c.cell_id) == best_here { "+" } else { " " };
+                            let mark = if c.cell_id == s.best_cell_id {
+                                "*"
+                            } else if Some(c.cell_id) == best_here {
+                                "+"
+                            } else {
+                                " "
+                            };
                             format!("{:.4}{mark}", sc.score)
                         }
                         (None, st) => format!("{} ", cell_state(st as i32)),
@@ -278,7 +400,15 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
     }
     if s.best_cell_id != 0 {
         if let Some(b) = cells.iter().find(|c| c.cell_id == s.best_cell_id) {
-            let _ = writeln!(o, "\nbest (*): cell {} on {}, w1 {:.3}, w2 {:.3}, score {:.4}", b.cell_id, b.terrain, b.w1, b.w2, b.score.map_or(f64::NAN, |x| x.score));
+            let _ = writeln!(
+                o,
+                "\nbest (*): cell {} on {}, w1 {:.3}, w2 {:.3}, score {:.4}",
+                b.cell_id,
+                b.terrain,
+                b.w1,
+                b.w2,
+                b.score.map_or(f64::NAN, |x| x.score)
+            );
         }
     }
     o

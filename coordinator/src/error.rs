@@ -91,7 +91,11 @@ impl From<Error> for tonic::Status {
             | Error::NothingPromoted(_) => Status::not_found(msg),
             Error::UnknownWorker(_) | Error::CellClosed { .. } => Status::failed_precondition(msg),
             Error::TooLarge { .. } => Status::resource_exhausted(msg),
-            Error::Db(_) | Error::Migrate(_) | Error::Server(_) | Error::Io { .. } | Error::Json(_) => {
+            Error::Db(_)
+            | Error::Migrate(_)
+            | Error::Server(_)
+            | Error::Io { .. }
+            | Error::Json(_) => {
                 tracing::error!(error = %msg, "internal error");
                 Status::internal(msg)
             }

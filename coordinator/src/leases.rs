@@ -40,13 +40,35 @@ struct Inner {
 
 impl LeaseTable {
     /// Adds a lease with its first deadline.
-    pub fn insert(&self, lease: LeaseId, cell: CellId, sweep: SweepId, worker: WorkerId, deadline_ms: i64) {
+    pub fn insert(
+        &self,
+        lease: LeaseId,
+        cell: CellId,
+        sweep: SweepId,
+        worker: WorkerId,
+        deadline_ms: i64,
+    ) {
         let mut g = self.inner.lock().expect("lease table poisoned");
-        g.leases.insert(lease, Entry { cell, sweep, worker, deadline_ms, cancelled: false });
+        g.leases.insert(
+            lease,
+            Entry {
+                cell,
+                sweep,
+                worker,
+                deadline_ms,
+                cancelled: false,
+            },
+        );
     }
 
     /// Renews the leases a worker holds.
-    pub fn heartbeat(&self, worker: &WorkerId, leases: &[LeaseId], now_ms: i64, lease_ms: i64) -> Vec<Beat> {
+    pub fn heartbeat(
+        &self,
+        worker: &WorkerId,
+        leases: &[LeaseId],
+        now_ms: i64,
+        lease_ms: i64,
+    ) -> Vec<Beat> {
         let mut g = self.inner.lock().expect("lease table poisoned");
         g.seen.insert(worker.clone());
         leases
@@ -73,12 +95,20 @@ impl LeaseTable {
 
     /// Removes one lease.
     pub fn remove(&self, lease: LeaseId) {
-        self.inner.lock().expect("lease table poisoned").leases.remove(&lease);
+        self.inner
+            .lock()
+            .expect("lease table poisoned")
+            .leases
+            .remove(&lease);
     }
 
     /// Removes every lease of a cell (it finished).
     pub fn remove_cell(&self, cell: CellId) {
-        self.inner.lock().expect("lease table poisoned").leases.retain(|_, e| e.cell != cell);
+        self.inner
+            .lock()
+            .expect("lease table poisoned")
+            .leases
+            .retain(|_, e| e.cell != cell);
     }
 
     /// Marks the leases of a sweep cancelled; their heartbeats answer `Cancelled`.
@@ -91,12 +121,21 @@ impl LeaseTable {
 
     /// Workers seen since the last call.
     pub fn take_seen(&self) -> Vec<WorkerId> {
-        self.inner.lock().expect("lease table poisoned").seen.drain().collect()
+        self.inner
+            .lock()
+            .expect("lease table poisoned")
+            .seen
+            .drain()
+            .collect()
     }
 
     /// Number of live leases.
     pub fn len(&self) -> usize {
-        self.inner.lock().expect("lease table poisoned").leases.len()
+        self.inner
+            .lock()
+            .expect("lease table poisoned")
+            .leases
+            .len()
     }
 
     /// True when no lease is live.
@@ -114,8 +153,14 @@ mod tests {
         let t = LeaseTable::default();
         let w = WorkerId("a".into());
         t.insert(LeaseId(1), CellId(1), SweepId(1), w.clone(), 100);
-        assert_eq!(t.heartbeat(&w, &[LeaseId(1), LeaseId(2)], 50, 1000), vec![Beat::Active(1050), Beat::Lost]);
-        assert_eq!(t.heartbeat(&WorkerId("b".into()), &[LeaseId(1)], 50, 1000), vec![Beat::Lost]);
+        assert_eq!(
+            t.heartbeat(&w, &[LeaseId(1), LeaseId(2)], 50, 1000),
+            vec![Beat::Active(1050), Beat::Lost]
+        );
+        assert_eq!(
+            t.heartbeat(&WorkerId("b".into()), &[LeaseId(1)], 50, 1000),
+            vec![Beat::Lost]
+        );
         assert!(t.take_expired(1049).is_empty());
         assert_eq!(t.take_expired(1050).len(), 1);
         assert_eq!(t.heartbeat(&w, &[LeaseId(1)], 60, 1000), vec![Beat::Lost]);
@@ -127,6 +172,9 @@ mod tests {
         let w = WorkerId("a".into());
         t.insert(LeaseId(1), CellId(1), SweepId(7), w.clone(), 100);
         t.cancel_sweep(SweepId(7));
-        assert_eq!(t.heartbeat(&w, &[LeaseId(1)], 50, 1000), vec![Beat::Cancelled]);
+        assert_eq!(
+            t.heartbeat(&w, &[LeaseId(1)], 50, 1000),
+            vec![Beat::Cancelled]
+        );
     }
 }

@@ -8,7 +8,11 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 #[derive(Parser)]
-#[command(name = "coordinator", version, about = "gaitsweep coordinator: serve sweeps or query a running coordinator")]
+#[command(
+    name = "coordinator",
+    version,
+    about = "gaitsweep coordinator: serve sweeps or query a running coordinator"
+)]
 struct Args {
     #[command(subcommand)]
     cmd: Cmd,
@@ -60,6 +64,7 @@ fn main() -> anyhow::Result<()> {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     let rt = tokio::runtime::Runtime::new()?;
     rt.block_on(async move {
@@ -75,7 +80,7 @@ fn main() -> anyhow::Result<()> {
                     max_checkpoint_bytes: a.max_checkpoint_mb << 20,
                 };
                 let shutdown = async {
-                    let _ = tokio::signal::ctrl_c().await;
+                    gaitsweep_core::shutdown_signal().await;
                     tracing::info!("shutting down");
                 };
                 gaitsweep_coordinator::serve::serve(cfg, shutdown).await?;

@@ -35,8 +35,11 @@ pub fn after_failure(attempts: u32, max_attempts: u32) -> CellState {
 
 /// The leases whose deadline has passed at `now_ms`.
 pub fn expired(leases: impl IntoIterator<Item = (LeaseId, i64)>, now_ms: i64) -> Vec<LeaseId> {
-    let mut out: Vec<LeaseId> =
-        leases.into_iter().filter(|&(_, deadline)| deadline <= now_ms).map(|(id, _)| id).collect();
+    let mut out: Vec<LeaseId> = leases
+        .into_iter()
+        .filter(|&(_, deadline)| deadline <= now_ms)
+        .map(|(id, _)| id)
+        .collect();
     out.sort();
     out
 }
@@ -62,7 +65,9 @@ pub fn beats(new: (CellId, f64), best: Option<(CellId, f64)>) -> bool {
 
 /// The best of a set of scored cells under [`beats`].
 pub fn best_of(scores: impl IntoIterator<Item = (CellId, f64)>) -> Option<(CellId, f64)> {
-    scores.into_iter().fold(None, |best, s| if beats(s, best) { Some(s) } else { best })
+    scores
+        .into_iter()
+        .fold(None, |best, s| if beats(s, best) { Some(s) } else { best })
 }
 
 /// Whether a sweep is finished given how many of its cells are not terminal yet.
@@ -77,7 +82,11 @@ mod tests {
 
     #[test]
     fn fair_share_across_sweeps() {
-        let c = |cell, sweep, running| Candidate { cell: CellId(cell), sweep: SweepId(sweep), running };
+        let c = |cell, sweep, running| Candidate {
+            cell: CellId(cell),
+            sweep: SweepId(sweep),
+            running,
+        };
         assert_eq!(pick_next(&[]), None);
         assert_eq!(pick_next(&[c(10, 1, 2), c(20, 2, 0)]), Some(CellId(20)));
         assert_eq!(pick_next(&[c(10, 1, 1), c(20, 2, 1)]), Some(CellId(10)));

@@ -39,28 +39,46 @@ pub struct ServeConfig {
 }
 
 /// Runs the coordinator until `shutdown` resolves.
-pub async fn serve(cfg: ServeConfig, shutdown: impl Future<Output = ()> + Send + 'static) -> Result<()> {
-    std::fs::create_dir_all(&cfg.data_dir).map_err(io(format!("create data dir {}", cfg.data_dir.display())))?;
+pub async fn serve(
+    cfg: ServeConfig,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> Result<()> {
+    std::fs::create_dir_all(&cfg.data_dir)
+        .map_err(io(format!("create data dir {}", cfg.data_dir.display())))?;
     let store = SqliteStore::open(&cfg.data_dir.join("gaitsweep.sqlite")).await?;
     let blobs = Blobs::new(&cfg.data_dir, cfg.max_checkpoint_bytes)?;
-    let limits = Limits { lease_ms: cfg.lease.as_millis() as i64, max_attempts: cfg.max_attempts };
+    let limits = Limits {
+        lease_ms: cfg.lease.as_millis() as i64,
+        max_attempts: cfg.max_attempts,
+    };
     let coord = Coordinator::new(store, blobs, limits).await?;
 
     let (health, health_service) = tonic_health::server::health_reporter();
-    for name in ["", "gaitsweep.v1.WorkerService", "gaitsweep.v1.SweepService"] {
-        health.set_service_status(name, tonic_health::ServingStatus::Serving).await;
+    for name in [
+        "",
+        "gaitsweep.v1.WorkerService",
+        "gaitsweep.v1.SweepService",
+    ] {
+        health
+            .set_service_status(name, tonic_health::ServingStatus::Serving)
+            .await;
     }
     let reflection = || {
         tonic_reflection::server::Builder::configure()
             .register_encoded_file_descriptor_set(pb::FILE_DESCRIPTOR_SET)
             .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
     };
-    let reflection_v1 = reflection().build_v1().map_err(|e| Error::Server(format!("reflection: {e}")))?;
-    let reflection_v1alpha = reflection().build_v1alpha().map_err(|e| Error::Server(format!("reflection: {e}")))?;
+    let reflection_v1 = reflection()
+        .build_v1()
+        .map_err(|e| Error::Server(format!("reflection: {e}")))?;
+    let reflection_v1alpha = reflection()
+        .build_v1alpha()
+        .map_err(|e| Error::Server(format!("reflection: {e}")))?;
 
     let mut builder = Server::builder().http2_adaptive_window(Some(true));
     if let Some((cert, key)) = &cfg.tls {
-        let cert = std::fs::read(cert).map_err(io(format!("read tls certificate {}", cert.display())))?;
+        let cert =
+            std::fs::read(cert).map_err(io(format!("read tls certificate {}", cert.display())))?;
         let key = std::fs::read(key).map_err(io(format!("read tls key {}", key.display())))?;
         builder = builder
             .tls_config(ServerTlsConfig::new().identity(Identity::from_pem(cert, key)))
@@ -71,19 +89,27 @@ pub async fn serve(cfg: ServeConfig, shutdown: impl Future<Output = ()> + Send +
         .map_err(io(format!("listen on {}: is the port free?", cfg.listen)))?;
     let addr = listener.local_addr().map_err(io("read bound address"))?;
     let addr_file = cfg.data_dir.join(ADDR_FILE);
-    std::fs::write(&addr_file, addr.to_string()).map_err(io(format!("write {}", addr_file.display())))?;
+    std::fs::write(&addr_file, addr.to_string())
+        .map_err(io(format!("write {}", addr_file.display())))?;
     tracing::info!(%addr, data_dir = %cfg.data_dir.display(), tls = cfg.tls.is_some(), auth = cfg.token.is_some(), "coordinator listening");
     println!("listening on {addr}");
 
     let background = tokio::spawn(expiry_loop(coord.clone()));
     let incoming = tonic::transport::server::TcpIncoming::from(listener).with_nodelay(Some(true));
     let result = builder
-        .layer(tonic::service::InterceptorLayer::new(TokenCheck::new(cfg.token.as_deref())))
+        .layer(tonic::service::InterceptorLayer::new(TokenCheck::new(
+            cfg.token.as_deref(),
+        )))
         .add_service(health_service)
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
-        .add_service(pb::worker_service_server::WorkerServiceServer::new(WorkerApi(coord.clone())).max_decoding_message_size(8 << 20))
-        .add_service(pb::sweep_service_server::SweepServiceServer::new(SweepApi(coord.clone())))
+        .add_service(
+            pb::worker_service_server::WorkerServiceServer::new(WorkerApi(coord.clone()))
+                .max_decoding_message_size(8 << 20),
+        )
+        .add_service(pb::sweep_service_server::SweepServiceServer::new(SweepApi(
+            coord.clone(),
+        )))
         .serve_with_incoming_shutdown(incoming, shutdown)
         .await;
     background.abort();
@@ -102,7 +128,17 @@ async fn expiry_loop<S: Store>(coord: Arc<Coordinator<S>>) {
                 "lease expired: no heartbeat for {} s, the worker is gone or cut off",
                 coord.limits.lease_ms / 1000
             );
-            match coord.store.end_attempt(lease, AttemptEnd::Expired, &msg, coord.limits.max_attempts, now).await {
+            match coord
+                .store
+                .end_attempt(
+                    lease,
+                    AttemptEnd::Expired,
+                    &msg,
+                    coord.limits.max_attempts,
+                    now,
+                )
+                .await
+            {
                 Ok(out) => {
                     tracing::warn!(lease = lease.0, cell = cell.0, state = %out.cell.state, "lease expired");
                     coord.emit(sweep.0, Kind::Cell((&out.cell).into()));

@@ -9,10 +9,14 @@ use gaitsweep_sim::GaitScore;
 impl From<&Axis> for pb::Axis {
     fn from(a: &Axis) -> Self {
         let kind = match a {
-            Axis::Range { min, max, count } => {
-                pb::axis::Kind::Range(pb::Range { min: *min, max: *max, count: *count as u32 })
-            }
-            Axis::Values { values } => pb::axis::Kind::Values(pb::Values { values: values.clone() }),
+            Axis::Range { min, max, count } => pb::axis::Kind::Range(pb::Range {
+                min: *min,
+                max: *max,
+                count: *count as u32,
+            }),
+            Axis::Values { values } => pb::axis::Kind::Values(pb::Values {
+                values: values.clone(),
+            }),
         };
         pb::Axis { kind: Some(kind) }
     }
@@ -20,7 +24,11 @@ impl From<&Axis> for pb::Axis {
 
 fn axis_from_wire(a: Option<pb::Axis>) -> Option<Axis> {
     match a?.kind? {
-        pb::axis::Kind::Range(r) => Some(Axis::Range { min: r.min, max: r.max, count: r.count as usize }),
+        pb::axis::Kind::Range(r) => Some(Axis::Range {
+            min: r.min,
+            max: r.max,
+            count: r.count as usize,
+        }),
         pb::axis::Kind::Values(v) => Some(Axis::Values { values: v.values }),
     }
 }
@@ -57,8 +65,18 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
             terrains: s.terrains.iter().map(|t| t.to_string()).collect(),
             difficulty: s.difficulty.map(u32::from),
             preset_grid: false,
-            w1: Some((&Axis::Values { values: s.w1_values.clone() }).into()),
-            w2: Some((&Axis::Values { values: s.w2_values.clone() }).into()),
+            w1: Some(
+                (&Axis::Values {
+                    values: s.w1_values.clone(),
+                })
+                    .into(),
+            ),
+            w2: Some(
+                (&Axis::Values {
+                    values: s.w2_values.clone(),
+                })
+                    .into(),
+            ),
             agents_per_cell: s.agents_per_cell as u32,
             epochs: s.epochs,
             checkpoint_every: s.checkpoint_every,
@@ -126,7 +144,10 @@ impl TryFrom<pb::CellState> for CellState {
             pb::CellState::Failed => CellState::Failed,
             pb::CellState::Cancelled => CellState::Cancelled,
             pb::CellState::Unspecified => {
-                return Err(Error::UnknownValue { what: "cell state", value: "unspecified".into() })
+                return Err(Error::UnknownValue {
+                    what: "cell state",
+                    value: "unspecified".into(),
+                })
             }
         })
     }
@@ -144,13 +165,21 @@ impl From<SweepState> for pb::SweepState {
 
 impl From<&CheckpointRecord> for pb::CheckpointRef {
     fn from(c: &CheckpointRecord) -> Self {
-        pb::CheckpointRef { sha256: c.sha256.clone(), size: c.size, epoch: c.epoch }
+        pb::CheckpointRef {
+            sha256: c.sha256.clone(),
+            size: c.size,
+            epoch: c.epoch,
+        }
     }
 }
 
 impl From<&pb::CheckpointRef> for CheckpointRecord {
     fn from(c: &pb::CheckpointRef) -> Self {
-        CheckpointRecord { sha256: c.sha256.clone(), size: c.size, epoch: c.epoch }
+        CheckpointRecord {
+            sha256: c.sha256.clone(),
+            size: c.size,
+            epoch: c.epoch,
+        }
     }
 }
 
@@ -211,6 +240,9 @@ pub fn spec_from_request(req: pb::CreateSweepRequest) -> Result<SweepSpec> {
     match req.spec {
         Some(pb::create_sweep_request::Spec::Toml(text)) => SweepSpec::from_toml(&text),
         Some(pb::create_sweep_request::Spec::Structured(s)) => Ok(s.into()),
-        None => Err(Error::MissingField { message: "CreateSweepRequest", field: "spec" }),
+        None => Err(Error::MissingField {
+            message: "CreateSweepRequest",
+            field: "spec",
+        }),
     }
 }

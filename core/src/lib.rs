@@ -31,3 +31,27 @@ pub const AUTH_HEADER: &str = "authorization";
 pub fn bearer(token: &str) -> String {
     format!("Bearer {token}")
 }
+
+/// Resolves when the process is asked to stop: Ctrl-C (SIGINT) or SIGTERM (systemd,
+/// Kubernetes and Slurm stop services with SIGTERM).
+pub async fn shutdown_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{signal, SignalKind};
+        match signal(SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = tokio::signal::ctrl_c() => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = tokio::signal::ctrl_c().await;
+    }
+}

@@ -36,7 +36,9 @@ impl Axis {
             Axis::Range { min, max, count } => match *count {
                 0 => vec![],
                 1 => vec![*min],
-                n => (0..n).map(|i| min + (max - min) * i as f64 / (n - 1) as f64).collect(),
+                n => (0..n)
+                    .map(|i| min + (max - min) * i as f64 / (n - 1) as f64)
+                    .collect(),
             },
             Axis::Values { values } => values.clone(),
         }
@@ -172,8 +174,16 @@ impl SweepSpec {
             let override_problem = ppo.apply_overrides(&self.ppo).err().map(|e| e.to_string());
             let g = &preset.grid;
             let grid = PresetGrid {
-                w1: Axis::Range { min: g.w1.min, max: g.w1.max, count: g.w1.count },
-                w2: Axis::Range { min: g.w2.min, max: g.w2.max, count: g.w2.count },
+                w1: Axis::Range {
+                    min: g.w1.min,
+                    max: g.w1.max,
+                    count: g.w1.count,
+                },
+                w2: Axis::Range {
+                    min: g.w2.min,
+                    max: g.w2.max,
+                    count: g.w2.count,
+                },
                 agents_per_cell: g.agents_per_cell,
                 epochs: g.epochs,
             };
@@ -204,11 +214,14 @@ impl SweepSpec {
         }
         let mut terrains = Vec::new();
         if self.terrains.is_empty() {
-            problems.push("terrains is empty: list at least one of flat, rough, stairs, slopes".into());
+            problems
+                .push("terrains is empty: list at least one of flat, rough, stairs, slopes".into());
         }
         for t in &self.terrains {
             match t.parse::<TerrainKind>() {
-                Ok(k) if terrains.contains(&k) => problems.push(format!("terrain {t:?} is listed twice")),
+                Ok(k) if terrains.contains(&k) => {
+                    problems.push(format!("terrain {t:?} is listed twice"))
+                }
                 Ok(k) => terrains.push(k),
                 Err(_) => problems.push(format!(
                     "terrain {t:?} is unknown: use flat, rough, stairs or slopes"
@@ -222,15 +235,24 @@ impl SweepSpec {
         }
         let from_preset = |field: &str, problems: &mut Vec<String>| {
             if !self.preset_grid {
-                problems.push(format!("{field} is missing: set it or set preset_grid = true"));
+                problems.push(format!(
+                    "{field} is missing: set it or set preset_grid = true"
+                ));
             }
         };
-        let axis = |name: &str, given: &Option<Axis>, preset: Option<&Axis>, problems: &mut Vec<String>| {
+        let axis = |name: &str,
+                    given: &Option<Axis>,
+                    preset: Option<&Axis>,
+                    problems: &mut Vec<String>| {
             let axis = match (given, preset) {
                 (Some(a), _) => Some(a.clone()),
                 (None, p) => {
                     from_preset(name, problems);
-                    if self.preset_grid { p.cloned() } else { None }
+                    if self.preset_grid {
+                        p.cloned()
+                    } else {
+                        None
+                    }
                 }
             };
             let values = axis.map(|a| a.values()).unwrap_or_default();
@@ -250,7 +272,9 @@ impl SweepSpec {
         let w1_values = axis("w1", &self.w1, grid.as_ref().map(|g| &g.w1), &mut problems);
         let w2_values = axis("w2", &self.w2, grid.as_ref().map(|g| &g.w2), &mut problems);
         if w2_values.iter().any(|v| *v > 3.0) {
-            problems.push("w2 is the log10 of the torque weight: values above 3 are not sensible".into());
+            problems.push(
+                "w2 is the log10 of the torque weight: values above 3 are not sensible".into(),
+            );
         }
         let agents_per_cell = match self.agents_per_cell {
             Some(0) => {
@@ -289,7 +313,9 @@ impl SweepSpec {
         }
         let cells = terrains.len().max(1) * w1_values.len() * w2_values.len();
         if cells > MAX_CELLS {
-            problems.push(format!("the grid has {cells} cells, more than the limit of {MAX_CELLS}"));
+            problems.push(format!(
+                "the grid has {cells} cells, more than the limit of {MAX_CELLS}"
+            ));
         }
         if !problems.is_empty() {
             return Err(Error::InvalidSpec(problems));
@@ -359,7 +385,10 @@ mod terrain_names {
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<TerrainKind>, D::Error> {
         Vec::<String>::deserialize(d)?
             .iter()
-            .map(|s| s.parse().map_err(|_| D::Error::custom(format!("unknown terrain {s:?}"))))
+            .map(|s| {
+                s.parse()
+                    .map_err(|_| D::Error::custom(format!("unknown terrain {s:?}")))
+            })
             .collect()
     }
 }
@@ -378,8 +407,16 @@ mod tests {
 
     fn grid() -> PresetGrid {
         PresetGrid {
-            w1: Axis::Range { min: 2.0, max: 12.0, count: 4 },
-            w2: Axis::Range { min: -10.0, max: -2.0, count: 7 },
+            w1: Axis::Range {
+                min: 2.0,
+                max: 12.0,
+                count: 4,
+            },
+            w2: Axis::Range {
+                min: -10.0,
+                max: -2.0,
+                count: 7,
+            },
             agents_per_cell: 146,
             epochs: 3000,
         }
@@ -391,7 +428,9 @@ mod tests {
 
     #[test]
     fn preset_grid_is_one_flag_away() {
-        let spec = SweepSpec::from_toml("robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\n").unwrap();
+        let spec =
+            SweepSpec::from_toml("robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\n")
+                .unwrap();
         let r = spec.resolve_with(ok).unwrap();
         assert_eq!(r.cell_count(), 28);
         assert_eq!(r.agents_per_cell, 146);
@@ -412,7 +451,10 @@ mod tests {
             ppo = { learning_rate = 0.0005 }
             eval = { robots = 2, seconds = 2.0 }
         "#;
-        let r = SweepSpec::from_toml(text).unwrap().resolve_with(ok).unwrap();
+        let r = SweepSpec::from_toml(text)
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap();
         let cells = r.cells();
         assert_eq!(cells.len(), 12);
         assert_eq!(cells[3].w2, -6.0);
@@ -425,17 +467,34 @@ mod tests {
     #[test]
     fn every_problem_is_listed() {
         let text = "robot = \"\"\nterrains = [\"lava\", \"flat\", \"flat\"]\ndifficulty = 12\nagents_per_cell = 0\nepochs = 0\nw1 = { values = [] }\n";
-        let err = SweepSpec::from_toml(text).unwrap().resolve_with(ok).unwrap_err();
-        let Error::InvalidSpec(p) = err else { panic!("wrong error {err}") };
+        let err = SweepSpec::from_toml(text)
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap_err();
+        let Error::InvalidSpec(p) = err else {
+            panic!("wrong error {err}")
+        };
         let all = p.join("\n");
-        for needle in ["robot is empty", "lava", "listed twice", "difficulty", "agents_per_cell is 0", "epochs is 0", "w1.values is empty", "w2 is missing"] {
+        for needle in [
+            "robot is empty",
+            "lava",
+            "listed twice",
+            "difficulty",
+            "agents_per_cell is 0",
+            "epochs is 0",
+            "w1.values is empty",
+            "w2 is missing",
+        ] {
             assert!(all.contains(needle), "{needle} not in {all}");
         }
     }
 
     #[test]
     fn unknown_keys_are_rejected() {
-        assert!(matches!(SweepSpec::from_toml("robot = \"anymal\"\nbogus = 1\n"), Err(Error::SpecToml(_))));
+        assert!(matches!(
+            SweepSpec::from_toml("robot = \"anymal\"\nbogus = 1\n"),
+            Err(Error::SpecToml(_))
+        ));
     }
 
     proptest::proptest! {

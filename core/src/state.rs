@@ -52,7 +52,12 @@ impl FromStr for CellState {
             "done" => Self::Done,
             "failed" => Self::Failed,
             "cancelled" => Self::Cancelled,
-            _ => return Err(Error::UnknownValue { what: "cell state", value: s.into() }),
+            _ => {
+                return Err(Error::UnknownValue {
+                    what: "cell state",
+                    value: s.into(),
+                })
+            }
         })
     }
 }
@@ -92,7 +97,12 @@ impl FromStr for SweepState {
             "running" => Self::Running,
             "done" => Self::Done,
             "cancelled" => Self::Cancelled,
-            _ => return Err(Error::UnknownValue { what: "sweep state", value: s.into() }),
+            _ => {
+                return Err(Error::UnknownValue {
+                    what: "sweep state",
+                    value: s.into(),
+                })
+            }
         })
     }
 }

@@ -99,7 +99,9 @@ impl Agent {
 
     pub(crate) fn sample_command(&mut self, p: &Preset) {
         let c = &p.commands;
-        self.cmd.speed = self.rng.random_range(c.forward_speed[0]..=c.forward_speed[1]);
+        self.cmd.speed = self
+            .rng
+            .random_range(c.forward_speed[0]..=c.forward_speed[1]);
         self.cmd.heading = self.rng.random_range(c.heading[0]..=c.heading[1]);
     }
 
@@ -131,7 +133,8 @@ impl Agent {
     fn update_yaw_command(&mut self, p: &Preset) {
         let yaw = yaw_of(&self.world.base().rot);
         let c = &p.commands;
-        self.cmd_yaw_rate = (c.heading_gain * wrap(self.cmd.heading - yaw)).clamp(-c.max_yaw_rate, c.max_yaw_rate);
+        self.cmd_yaw_rate =
+            (c.heading_gain * wrap(self.cmd.heading - yaw)).clamp(-c.max_yaw_rate, c.max_yaw_rate);
     }
 
     /// Distance walked from the episode's origin (m).
@@ -141,7 +144,13 @@ impl Agent {
     }
 
     /// Advances one policy step with `actions` (clipped to [-clip, clip]).
-    pub(crate) fn step(&mut self, p: &Preset, w: GridWeights, actions: &[f32], max_steps: u32) -> StepReport {
+    pub(crate) fn step(
+        &mut self,
+        p: &Preset,
+        w: GridWeights,
+        actions: &[f32],
+        max_steps: u32,
+    ) -> StepReport {
         let ctl = &p.control;
         let clip = p.observation.clip;
         let mut targets = [0.0f32; NJ];
@@ -150,15 +159,21 @@ impl Agent {
             targets[k] = p.default_pose[k] + ctl.action_scale * self.actions[k];
         }
         let mut tau = [0.0f32; NJ];
-        let (mut torque_sq, mut torque_norm, mut abs_torque, mut power) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+        let (mut torque_sq, mut torque_norm, mut abs_torque, mut power) =
+            (0.0f32, 0.0f32, 0.0f32, 0.0f32);
         for _ in 0..ctl.decimation {
-            self.world.step(&targets, &mut self.q, &mut self.qd, &mut tau);
+            self.world
+                .step(&targets, &mut self.q, &mut self.qd, &mut tau);
             let sq: f32 = tau.iter().map(|t| t * t).sum();
             torque_sq += sq;
             torque_norm += sq.sqrt();
             abs_torque += tau.iter().map(|t| t.abs()).sum::<f32>() / NJ as f32;
             // Power of the torques at the velocities they were computed from.
-            power += tau.iter().zip(&self.qd).map(|(t, v)| (t * v).abs()).sum::<f32>();
+            power += tau
+                .iter()
+                .zip(&self.qd)
+                .map(|(t, v)| (t * v).abs())
+                .sum::<f32>();
         }
         let dec = ctl.decimation as f32;
         let dt = p.policy_dt();
@@ -171,12 +186,25 @@ impl Agent {
         let grav_b = base.rot.inverse() * Vector::new(0.0, 0.0, -1.0);
         let mut contact = [false; 4];
         self.world.foot_contacts(&mut contact);
-        let air_time = reward::feet_air_time(&mut self.air, &mut self.last_contact, &contact, dt, self.cmd.speed);
-        let dof_acc_sq: f32 = (0..NJ).map(|k| ((self.qd[k] - self.last_qd[k]) / dt).powi(2)).sum();
-        let action_rate_sq: f32 = (0..NJ).map(|k| (self.actions[k] - self.last_actions[k]).powi(2)).sum();
+        let air_time = reward::feet_air_time(
+            &mut self.air,
+            &mut self.last_contact,
+            &contact,
+            dt,
+            self.cmd.speed,
+        );
+        let dof_acc_sq: f32 = (0..NJ)
+            .map(|k| ((self.qd[k] - self.last_qd[k]) / dt).powi(2))
+            .sum();
+        let action_rate_sq: f32 = (0..NJ)
+            .map(|k| (self.actions[k] - self.last_actions[k]).powi(2))
+            .sum();
 
         self.step_in_episode += 1;
-        let fell = self.world.base_contact() || grav_b.z > -0.3 || base.pos.z - self.world.tile().height(base.pos.x, base.pos.y) < 0.35 * p.nominal_base_height;
+        let fell = self.world.base_contact()
+            || grav_b.z > -0.3
+            || base.pos.z - self.world.tile().height(base.pos.x, base.pos.y)
+                < 0.35 * p.nominal_base_height;
         let off_tile = base.pos.x.abs().max(base.pos.y.abs()) > TILE / 2.0 - 1.0;
         let timeout = !fell && (self.step_in_episode >= max_steps || off_tile);
 
@@ -216,7 +244,11 @@ impl Agent {
             self.sample_command(p);
         }
         self.update_yaw_command(p);
-        StepReport { reward: self.terms.total(), done: fell || timeout, timeout }
+        StepReport {
+            reward: self.terms.total(),
+            done: fell || timeout,
+            timeout,
+        }
     }
 
     /// Writes the observation (legged_gym's layout) into `out`.
@@ -255,7 +287,13 @@ impl Agent {
         }
         let yaw = yaw_of(&base.rot);
         let scan = &mut out[i..];
-        height_scan(self.world.tile(), [base.pos.x, base.pos.y, base.pos.z], yaw, p, scan);
+        height_scan(
+            self.world.tile(),
+            [base.pos.x, base.pos.y, base.pos.z],
+            yaw,
+            p,
+            scan,
+        );
     }
 }
 

@@ -80,10 +80,16 @@ impl VecEnv {
             return Err(Error::InvalidArgument("num_envs must be at least 1".into()));
         }
         if !(cfg.w1.is_finite() && cfg.w2.is_finite()) {
-            return Err(Error::InvalidArgument(format!("w1 and w2 must be finite, got {} and {}", cfg.w1, cfg.w2)));
+            return Err(Error::InvalidArgument(format!(
+                "w1 and w2 must be finite, got {} and {}",
+                cfg.w1, cfg.w2
+            )));
         }
         if !(cfg.episode_seconds > 0.0) {
-            return Err(Error::InvalidArgument(format!("episode_seconds must be > 0, got {}", cfg.episode_seconds)));
+            return Err(Error::InvalidArgument(format!(
+                "episode_seconds must be > 0, got {}",
+                cfg.episode_seconds
+            )));
         }
         let model = RobotModel::load(preset)?;
         let terrain = TerrainSet::new(cfg.terrain);
@@ -98,11 +104,21 @@ impl VecEnv {
         let n = cfg.num_envs;
         let max_steps = (cfg.episode_seconds / preset.policy_dt()).round().max(1.0) as u32;
         let mut env = VecEnv {
-            weights: GridWeights { w1: cfg.w1, w2: cfg.w2 },
+            weights: GridWeights {
+                w1: cfg.w1,
+                w2: cfg.w2,
+            },
             max_steps,
             auto_reset: true,
             mass: model.total_mass,
-            half_extents: model.links[0].shapes.iter().find_map(|(_, s)| match s { crate::urdf::Shape::Cuboid(h) => Some(*h), _ => None }).unwrap_or(rapier3d::math::Vector::splat(0.2)),
+            half_extents: model.links[0]
+                .shapes
+                .iter()
+                .find_map(|(_, s)| match s {
+                    crate::urdf::Shape::Cuboid(h) => Some(*h),
+                    _ => None,
+                })
+                .unwrap_or(rapier3d::math::Vector::splat(0.2)),
             obs: vec![0.0; n * preset.obs_dim()],
             rewards: vec![0.0; n],
             dones: vec![false; n],
@@ -164,11 +180,15 @@ impl VecEnv {
     pub fn reseed(&mut self, seed: u64) {
         use rand::SeedableRng;
         let (p, terrain, od) = (&self.preset, &self.terrain, self.preset.obs_dim());
-        self.agents.par_iter_mut().zip(self.obs.par_chunks_mut(od)).enumerate().for_each(|(i, (a, o))| {
-            a.rng = rand_chacha::ChaCha8Rng::seed_from_u64(mix(seed, i as u64));
-            a.reset(p, terrain.tile(a.level, i).clone());
-            a.observe(p, o);
-        });
+        self.agents
+            .par_iter_mut()
+            .zip(self.obs.par_chunks_mut(od))
+            .enumerate()
+            .for_each(|(i, (a, o))| {
+                a.rng = rand_chacha::ChaCha8Rng::seed_from_u64(mix(seed, i as u64));
+                a.reset(p, terrain.tile(a.level, i).clone());
+                a.observe(p, o);
+            });
         self.finished.clear();
     }
 
@@ -182,14 +202,41 @@ impl VecEnv {
         self.agents.iter().map(|a| a.level).collect()
     }
 
+    /// Sets each robot's curriculum level (a resumed run restores the levels it saved);
+    /// they take effect at the next reset or reseed. Errors on a length mismatch.
+    pub fn set_levels(&mut self, levels: &[u8]) -> Result<()> {
+        if levels.len() != self.agents.len() {
+            return Err(Error::InvalidArgument(format!(
+                "expected {} levels, got {}",
+                self.agents.len(),
+                levels.len()
+            )));
+        }
+        for (a, l) in self.agents.iter_mut().zip(levels) {
+            a.level = (*l).min(crate::terrain::LEVELS - 1);
+        }
+        Ok(())
+    }
+
     /// Advances every robot one policy step with `actions` (`[N * 12]`, row-major).
     pub fn step(&mut self, actions: &[f32]) -> Result<StepResult<'_>> {
         let n = self.agents.len();
         if actions.len() != n * NJ {
-            return Err(Error::InvalidArgument(format!("expected {} actions ({} robots x {NJ}), got {}", n * NJ, n, actions.len())));
+            return Err(Error::InvalidArgument(format!(
+                "expected {} actions ({} robots x {NJ}), got {}",
+                n * NJ,
+                n,
+                actions.len()
+            )));
         }
-        let (p, terrain, w, max_steps, auto_reset, curriculum) =
-            (&self.preset, &self.terrain, self.weights, self.max_steps, self.auto_reset, self.cfg.difficulty.is_none());
+        let (p, terrain, w, max_steps, auto_reset, curriculum) = (
+            &self.preset,
+            &self.terrain,
+            self.weights,
+            self.max_steps,
+            self.auto_reset,
+            self.cfg.difficulty.is_none(),
+        );
         let od = p.obs_dim();
         let nt = TERM_NAMES.len();
         let finished: Vec<Option<crate::score::ScoreAccumulator>> = self
@@ -233,9 +280,18 @@ impl VecEnv {
             .collect();
         self.finished.extend(finished.into_iter().flatten());
         if let Some(i) = self.obs.iter().position(|v| !v.is_finite()) {
-            return Err(Error::NonFinite { robot: i / od, quantity: "observation" });
+            return Err(Error::NonFinite {
+                robot: i / od,
+                quantity: "observation",
+            });
         }
-        Ok(StepResult { obs: &self.obs, rewards: &self.rewards, dones: &self.dones, timeouts: &self.timeouts, terms: &self.terms })
+        Ok(StepResult {
+            obs: &self.obs,
+            rewards: &self.rewards,
+            dones: &self.dones,
+            timeouts: &self.timeouts,
+            terms: &self.terms,
+        })
     }
 
     /// Scores of episodes that ended since the last reset, plus the running episodes of
@@ -258,14 +314,21 @@ impl VecEnv {
                 let b = a.world.base();
                 let g = b.rot.inverse() * rapier3d::math::Vector::new(0.0, 0.0, -1.0);
                 let feet = a.world.foot_positions();
-                let ground = feet.iter().map(|f| a.world.tile().height(f.x, f.y)).sum::<f32>() / feet.len() as f32;
+                let ground = feet
+                    .iter()
+                    .map(|f| a.world.tile().height(f.x, f.y))
+                    .sum::<f32>()
+                    / feet.len() as f32;
                 (b.pos.z - ground, g.x.hypot(g.y))
             })
             .collect()
     }
 
     /// Body and foot positions of robot `i` (for rendering).
-    pub fn robot_geometry(&self, i: usize) -> (Vec<rapier3d::math::Vector>, Vec<rapier3d::math::Vector>) {
+    pub fn robot_geometry(
+        &self,
+        i: usize,
+    ) -> (Vec<rapier3d::math::Vector>, Vec<rapier3d::math::Vector>) {
         let w = &self.agents[i].world;
         (w.body_positions(), w.foot_positions())
     }
@@ -275,7 +338,12 @@ impl VecEnv {
         let w = &self.agents[i].world;
         let b = w.base();
         let bodies = w.body_positions();
-        crate::render::Frame { base_pos: b.pos, base_rot: b.rot, joints: bodies[1..].to_vec(), feet: w.foot_positions() }
+        crate::render::Frame {
+            base_pos: b.pos,
+            base_rot: b.rot,
+            joints: bodies[1..].to_vec(),
+            feet: w.foot_positions(),
+        }
     }
 
     /// Half extents of robot `i`'s body box (for rendering).
@@ -292,7 +360,14 @@ impl VecEnv {
         let mut qd = [0.0; NJ];
         a.world.joint_state(&mut q, &mut qd);
         let yaw = crate::agent::yaw_of(&b.rot);
-        a.world.reset_with_rotation(b.pos.x, b.pos.y, b.pos.z, rapier3d::math::Rotation::from_rotation_z(yaw) * rapier3d::math::Rotation::from_rotation_x(angle), &q);
+        a.world.reset_with_rotation(
+            b.pos.x,
+            b.pos.y,
+            b.pos.z,
+            rapier3d::math::Rotation::from_rotation_z(yaw)
+                * rapier3d::math::Rotation::from_rotation_x(angle),
+            &q,
+        );
     }
 
     /// The physics' terrain height under (x, y) for robot `i` (ray cast against its collider).

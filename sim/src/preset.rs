@@ -196,9 +196,8 @@ impl PpoConfig {
     /// 0/1; integers must be whole. An unknown name is an error listing the known ones.
     pub fn apply_overrides(&mut self, overrides: &BTreeMap<String, f64>) -> Result<()> {
         for (key, &v) in overrides {
-            let bad = |what: &str| {
-                Error::InvalidArgument(format!("ppo override {key} = {v}: {what}"))
-            };
+            let bad =
+                |what: &str| Error::InvalidArgument(format!("ppo override {key} = {v}: {what}"));
             if !v.is_finite() {
                 return Err(bad("value must be finite"));
             }
@@ -299,7 +298,11 @@ impl Preset {
     /// Loads the preset of a robot by name from [`robots_dir`], or from a preset directory
     /// when `robot` is a path (contains `/`), e.g. a robot kept outside this repository.
     pub fn load(robot: &str) -> Result<Preset> {
-        let dir = if robot.contains('/') { PathBuf::from(robot) } else { robots_dir().join(robot) };
+        let dir = if robot.contains('/') {
+            PathBuf::from(robot)
+        } else {
+            robots_dir().join(robot)
+        };
         if !dir.join("preset.toml").is_file() {
             let known = Self::available().join(", ");
             return Err(Error::Preset {
@@ -326,9 +329,11 @@ impl Preset {
     /// Loads `dir/preset.toml` and checks it against the URDF it names.
     pub fn load_from_dir(dir: &Path) -> Result<Preset> {
         let path = dir.join("preset.toml");
-        let err = |message: String| Error::Preset { path: path.clone(), message };
-        let text = std::fs::read_to_string(&path)
-            .map_err(|e| err(format!("cannot read: {e}")))?;
+        let err = |message: String| Error::Preset {
+            path: path.clone(),
+            message,
+        };
+        let text = std::fs::read_to_string(&path).map_err(|e| err(format!("cannot read: {e}")))?;
         let file: PresetFile =
             toml::from_str(&text).map_err(|e| err(format!("invalid toml: {e}")))?;
         let urdf_path = dir.join(&file.urdf);
@@ -336,7 +341,10 @@ impl Preset {
             .map_err(|e| err(format!("cannot read urdf {}: {e}", urdf_path.display())))?;
         let mut problems = Vec::new();
         if file.joints.len() != 12 {
-            problems.push(format!("joints: expected 12 actuated joints, found {}", file.joints.len()));
+            problems.push(format!(
+                "joints: expected 12 actuated joints, found {}",
+                file.joints.len()
+            ));
         }
         if file.default_pose.len() != file.joints.len() {
             problems.push(format!(
@@ -346,11 +354,17 @@ impl Preset {
             ));
         }
         if file.feet.len() != 4 {
-            problems.push(format!("feet: expected 4 foot links, found {}", file.feet.len()));
+            problems.push(format!(
+                "feet: expected 4 foot links, found {}",
+                file.feet.len()
+            ));
         }
         let c = &file.control;
         if !(c.sim_dt > 0.0 && c.sim_dt <= 0.02) {
-            problems.push(format!("control.sim_dt: expected (0, 0.02] s, found {}", c.sim_dt));
+            problems.push(format!(
+                "control.sim_dt: expected (0, 0.02] s, found {}",
+                c.sim_dt
+            ));
         }
         if c.decimation == 0 || c.solver_iterations == 0 {
             problems.push("control.decimation and control.solver_iterations must be >= 1".into());
@@ -359,12 +373,18 @@ impl Preset {
             problems.push("control.torque_limit and control.stiffness must be > 0".into());
         }
         if file.observation.scan_x.is_empty() != file.observation.scan_y.is_empty() {
-            problems.push("observation.scan_x and scan_y must both be empty or both non-empty".into());
+            problems
+                .push("observation.scan_x and scan_y must both be empty or both non-empty".into());
         }
         if !problems.is_empty() {
             return Err(err(problems.join("; ")));
         }
-        let digest = hex::encode(Sha256::new().chain_update(text.as_bytes()).chain_update(&urdf_bytes).finalize());
+        let digest = hex::encode(
+            Sha256::new()
+                .chain_update(text.as_bytes())
+                .chain_update(&urdf_bytes)
+                .finalize(),
+        );
         Ok(Preset {
             name: file.name,
             dir: dir.to_path_buf(),
@@ -408,10 +428,16 @@ mod tests {
     #[test]
     fn both_presets_load_with_table_one_grids() {
         let a = Preset::load("anymal").unwrap();
-        assert_eq!((a.grid.w1.count, a.grid.w2.count, a.grid.agents_per_cell), (4, 7, 146));
+        assert_eq!(
+            (a.grid.w1.count, a.grid.w2.count, a.grid.agents_per_cell),
+            (4, 7, 146)
+        );
         assert_eq!(a.obs_dim(), 48 + 17 * 11);
         let h = Preset::load("heavy").unwrap();
-        assert_eq!((h.grid.w1.count, h.grid.w2.count, h.grid.agents_per_cell), (4, 4, 256));
+        assert_eq!(
+            (h.grid.w1.count, h.grid.w2.count, h.grid.agents_per_cell),
+            (4, 4, 256)
+        );
         let w1 = a.grid.w1.values();
         assert!((w1[1] - 5.3333).abs() < 1e-3 && w1[3] == 12.0);
     }
@@ -431,6 +457,10 @@ mod tests {
         p.apply_overrides(&o).unwrap();
         assert_eq!((p.clip_param, p.num_mini_batches), (0.1, 2));
         o.insert("bogus".to_string(), 1.0);
-        assert!(p.apply_overrides(&o).unwrap_err().to_string().contains("unknown hyperparameter"));
+        assert!(p
+            .apply_overrides(&o)
+            .unwrap_err()
+            .to_string()
+            .contains("unknown hyperparameter"));
     }
 }

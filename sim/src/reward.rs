@@ -80,12 +80,20 @@ pub fn compute(inp: &RewardInput, w: GridWeights, r: &RewardConfig, dt: f32) -> 
         r.feet_air_time * inp.air_time,
         if inp.fell { -r.termination } else { 0.0 },
     ];
-    RewardTerms { values: values.map(|v| v * dt) }
+    RewardTerms {
+        values: values.map(|v| v * dt),
+    }
 }
 
 /// Feet air time bookkeeping (legged_gym): returns the air-time reward of this step and
 /// updates the per-foot timers.
-pub fn feet_air_time(air: &mut [f32; 4], last_contact: &mut [bool; 4], contact: &[bool; 4], dt: f32, cmd_speed: f32) -> f32 {
+pub fn feet_air_time(
+    air: &mut [f32; 4],
+    last_contact: &mut [bool; 4],
+    contact: &[bool; 4],
+    dt: f32,
+    cmd_speed: f32,
+) -> f32 {
     let mut reward = 0.0;
     for f in 0..4 {
         // A foot counts as in contact if it is now or was last step (filters PhysX-style flicker).
@@ -129,7 +137,8 @@ mod tests {
         let w = GridWeights { w1: 7.0, w2: -6.0 };
         let dt = 0.02;
         let t = compute(&inp, w, &r, dt).values;
-        let close = |a: f32, b: f64| assert!((a as f64 - b).abs() < 1e-6 * (1.0 + b.abs()), "{a} vs {b}");
+        let close =
+            |a: f32, b: f64| assert!((a as f64 - b).abs() < 1e-6 * (1.0 + b.abs()), "{a} vs {b}");
         // exp(-((1-0.8)^2 + 0.1^2) / 0.25) = exp(-0.2)
         close(t[0], 7.0 * (-0.2f64).exp() * 0.02);
         close(t[1], -1e-6 * 1000.0 * 0.02);
@@ -150,7 +159,10 @@ mod tests {
         let dt = 0.02;
         // Foot 0 lifts for 40 steps (0.8 s), then touches down.
         for _ in 0..40 {
-            assert_eq!(feet_air_time(&mut air, &mut last, &[false, true, true, true], dt, 1.0), 0.0);
+            assert_eq!(
+                feet_air_time(&mut air, &mut last, &[false, true, true, true], dt, 1.0),
+                0.0
+            );
         }
         let r = feet_air_time(&mut air, &mut last, &[true, true, true, true], dt, 1.0);
         // The first lifted step is filtered by the previous contact, so air = 0.8 s at touchdown.

@@ -107,10 +107,13 @@ impl RobotWorld {
                 .friction(friction)
                 .collision_groups(groups)
                 .build();
-            let h = world.colliders.insert_with_parent(c, bodies[0], &mut world.bodies);
+            let h = world
+                .colliders
+                .insert_with_parent(c, bodies[0], &mut world.bodies);
             base_collider.get_or_insert(h);
         }
-        let base_collider = base_collider.expect("base has a collision shape (checked by the preset)");
+        let base_collider =
+            base_collider.expect("base has a collision shape (checked by the preset)");
         let feet = model
             .feet
             .iter()
@@ -121,7 +124,9 @@ impl RobotWorld {
                     .friction(friction)
                     .collision_groups(groups)
                     .build();
-                world.colliders.insert_with_parent(c, bodies[body], &mut world.bodies)
+                world
+                    .colliders
+                    .insert_with_parent(c, bodies[body], &mut world.bodies)
             })
             .collect();
 
@@ -145,7 +150,9 @@ impl RobotWorld {
                         .expect("a tree of revolute joints forms one multibody"),
                 ),
                 JointBackend::Impulse => {
-                    world.impulse_joints.insert(bodies[j.parent], bodies[j.child], joint, true);
+                    world
+                        .impulse_joints
+                        .insert(bodies[j.parent], bodies[j.child], joint, true);
                 }
             }
             frames.push((f1, f2));
@@ -184,7 +191,8 @@ impl RobotWorld {
     pub fn set_tile(&mut self, tile: Arc<Tile>) {
         if let Some(h) = self.terrain.take() {
             let w = &mut self.world;
-            w.colliders.remove(h, &mut w.islands, &mut w.bodies, &mut w.soft_bodies, false);
+            w.colliders
+                .remove(h, &mut w.islands, &mut w.bodies, &mut w.soft_bodies, false);
         }
         let groups = InteractionGroups::new(TERRAIN, ROBOT, InteractionTestMode::And);
         let builder = match &tile.grid {
@@ -194,7 +202,8 @@ impl RobotWorld {
                 // parry's heightfield lies in its local xz plane with y up; turn it so that
                 // local y is world z. Row i then runs along world -y.
                 let n = g.n;
-                let heights = rapier3d::parry::utils::Array2::from_fn(n, n, |i, j| g.h[j * n + (n - 1 - i)]);
+                let heights =
+                    rapier3d::parry::utils::Array2::from_fn(n, n, |i, j| g.h[j * n + (n - 1 - i)]);
                 let side = g.side();
                 ColliderBuilder::heightfield(heights, Vector::new(side, 1.0, side))
                     .rotation(Vector::new(std::f32::consts::FRAC_PI_2, 0.0, 0.0))
@@ -227,7 +236,10 @@ impl RobotWorld {
             poses[0] = target;
             for (k, &(parent, child, _)) in self.joints.iter().enumerate() {
                 let (f1, f2) = self.frames[k];
-                poses[child] = poses[parent] * f1 * Pose::from_rotation(Rotation::from_rotation_x(q[k])) * f2.inverse();
+                poses[child] = poses[parent]
+                    * f1
+                    * Pose::from_rotation(Rotation::from_rotation_x(q[k]))
+                    * f2.inverse();
             }
             for (h, p) in self.bodies.iter().zip(&poses) {
                 self.world.bodies[*h].set_position(*p, false);
@@ -245,7 +257,9 @@ impl RobotWorld {
         disp[0] = target.translation.x - c[0];
         disp[1] = target.translation.y - c[1];
         disp[2] = target.translation.z - c[2];
-        let d = (target.rotation * cur_rot.inverse()).normalize().to_scaled_axis();
+        let d = (target.rotation * cur_rot.inverse())
+            .normalize()
+            .to_scaled_axis();
         disp[3] = d.x;
         disp[4] = d.y;
         disp[5] = d.z;
@@ -261,13 +275,35 @@ impl RobotWorld {
     }
 
     fn multibody_mut(&mut self) -> (&mut Multibody, usize) {
-        let h = self.world.multibody_joints.rigid_body_link(self.bodies[1]).expect("robot is a multibody").multibody;
-        (self.world.multibody_joints.get_multibody_mut(h).expect("multibody exists"), 0)
+        let h = self
+            .world
+            .multibody_joints
+            .rigid_body_link(self.bodies[1])
+            .expect("robot is a multibody")
+            .multibody;
+        (
+            self.world
+                .multibody_joints
+                .get_multibody_mut(h)
+                .expect("multibody exists"),
+            0,
+        )
     }
 
     fn multibody_mut_with_bodies(&mut self) -> (&mut Multibody, &mut RigidBodySet) {
-        let h = self.world.multibody_joints.rigid_body_link(self.bodies[1]).expect("robot is a multibody").multibody;
-        (self.world.multibody_joints.get_multibody_mut(h).expect("multibody exists"), &mut self.world.bodies)
+        let h = self
+            .world
+            .multibody_joints
+            .rigid_body_link(self.bodies[1])
+            .expect("robot is a multibody")
+            .multibody;
+        (
+            self.world
+                .multibody_joints
+                .get_multibody_mut(h)
+                .expect("multibody exists"),
+            &mut self.world.bodies,
+        )
     }
 
     fn sync_bodies(&mut self) {
@@ -288,8 +324,16 @@ impl RobotWorld {
     }
 
     fn multibody(&self) -> &Multibody {
-        let h = self.world.multibody_joints.rigid_body_link(self.bodies[1]).expect("robot is a multibody").multibody;
-        self.world.multibody_joints.get_multibody(h).expect("multibody exists")
+        let h = self
+            .world
+            .multibody_joints
+            .rigid_body_link(self.bodies[1])
+            .expect("robot is a multibody")
+            .multibody;
+        self.world
+            .multibody_joints
+            .get_multibody(h)
+            .expect("multibody exists")
     }
 
     /// Joint positions and velocities in action order.
@@ -297,7 +341,10 @@ impl RobotWorld {
         if self.backend == JointBackend::Impulse {
             for (k, &(parent, child, _)) in self.joints.iter().enumerate() {
                 let (f1, f2) = &self.frames[k];
-                let (p, c) = (&self.world.bodies[self.bodies[parent]], &self.world.bodies[self.bodies[child]]);
+                let (p, c) = (
+                    &self.world.bodies[self.bodies[parent]],
+                    &self.world.bodies[self.bodies[child]],
+                );
                 let r1 = *p.rotation() * f1.rotation;
                 let r2 = *c.rotation() * f2.rotation;
                 let rel = r1.inverse() * r2;
@@ -321,7 +368,8 @@ impl RobotWorld {
     pub fn step(&mut self, targets: &[f32], q: &mut [f32], qd: &mut [f32], tau: &mut [f32]) {
         self.joint_state(q, qd);
         for k in 0..tau.len() {
-            tau[k] = (self.kp * (targets[k] - q[k]) - self.kd * qd[k]).clamp(-self.tau_max, self.tau_max);
+            tau[k] = (self.kp * (targets[k] - q[k]) - self.kd * qd[k])
+                .clamp(-self.tau_max, self.tau_max);
         }
         for h in &self.bodies {
             self.world.bodies[*h].reset_torques(false);
@@ -338,7 +386,12 @@ impl RobotWorld {
     /// Base pose and velocities.
     pub fn base(&self) -> BaseState {
         let rb = &self.world.bodies[self.bodies[0]];
-        BaseState { pos: rb.translation(), rot: *rb.rotation(), linvel: rb.linvel(), angvel: rb.angvel() }
+        BaseState {
+            pos: rb.translation(),
+            rot: *rb.rotation(),
+            linvel: rb.linvel(),
+            angvel: rb.angvel(),
+        }
     }
 
     fn touching(&self, c: ColliderHandle) -> bool {
@@ -363,12 +416,18 @@ impl RobotWorld {
 
     /// World positions of every body (for rendering), base first.
     pub fn body_positions(&self) -> Vec<Vector> {
-        self.bodies.iter().map(|h| self.world.bodies[*h].translation()).collect()
+        self.bodies
+            .iter()
+            .map(|h| self.world.bodies[*h].translation())
+            .collect()
     }
 
     /// World positions of the feet (sphere centres).
     pub fn foot_positions(&self) -> Vec<Vector> {
-        self.feet.iter().map(|h| self.world.colliders[*h].position().translation).collect()
+        self.feet
+            .iter()
+            .map(|h| self.world.colliders[*h].position().translation)
+            .collect()
     }
 
     /// The default joint pose.
@@ -384,7 +443,12 @@ impl RobotWorld {
         // parry's heightfield ray cast walks cells in the ray's horizontal projection, which
         // a perfectly vertical ray does not have: start 20 m up with a 1e-4 slant aimed at (x, y, 0).
         let d = Vector::new(1e-4, 1e-4, -1.0).normalize();
-        let ray = Ray::new(Vector::new(x - d.x * (20.0 / -d.z), y - d.y * (20.0 / -d.z), 20.0), d);
-        c.shape().cast_ray(c.position(), &ray, 100.0, true).map(|toi| ray.point_at(toi).z)
+        let ray = Ray::new(
+            Vector::new(x - d.x * (20.0 / -d.z), y - d.y * (20.0 / -d.z), 20.0),
+            d,
+        );
+        c.shape()
+            .cast_ray(c.position(), &ray, 100.0, true)
+            .map(|toi| ray.point_at(toi).z)
     }
 }

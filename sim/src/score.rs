@@ -98,7 +98,10 @@ impl ScoreAccumulator {
 /// Averages robots' accumulators into a cell's score. `mass` is the robot's mass (kg).
 pub fn summarize(robots: &[ScoreAccumulator], mass: f32) -> GaitScore {
     let n = robots.len().max(1) as f64;
-    let mut s = GaitScore { robots: robots.len(), ..Default::default() };
+    let mut s = GaitScore {
+        robots: robots.len(),
+        ..Default::default()
+    };
     let (mut power, mut speed) = (0.0, 0.0);
     for r in robots {
         let t = r.steps.max(1) as f64;
@@ -113,7 +116,11 @@ pub fn summarize(robots: &[ScoreAccumulator], mass: f32) -> GaitScore {
         power += r.power / t / n;
         speed += r.speed / t / n;
     }
-    s.cost_of_transport = if speed > 1e-3 { power / (mass as f64 * 9.81 * speed) } else { 0.0 };
+    s.cost_of_transport = if speed > 1e-3 {
+        power / (mass as f64 * 9.81 * speed)
+    } else {
+        0.0
+    };
     s
 }
 
@@ -133,7 +140,12 @@ mod tests {
             gravity_xy: [0.3, 0.4],
             displacement: [0.01, 0.0],
         };
-        let s2 = ScoreStep { vel: [1.0, 0.0], gravity_xy: [0.0, 0.0], displacement: [0.02, 0.0], ..s1 };
+        let s2 = ScoreStep {
+            vel: [1.0, 0.0],
+            gravity_xy: [0.0, 0.0],
+            displacement: [0.02, 0.0],
+            ..s1
+        };
         a.add(&s1, 0.25, 80.0, 12);
         a.add(&s2, 0.25, 80.0, 12);
         let track = ((-0.25f64 / 0.25).exp() + 1.0) / 2.0;

@@ -148,7 +148,10 @@ impl HeightGrid {
         let max = (self.n - 1) as f32;
         let fx = (x / self.scale + half).clamp(0.0, max);
         let fy = (y / self.scale + half).clamp(0.0, max);
-        let (ix, iy) = ((fx.floor() as usize).min(self.n - 2), (fy.floor() as usize).min(self.n - 2));
+        let (ix, iy) = (
+            (fx.floor() as usize).min(self.n - 2),
+            (fy.floor() as usize).min(self.n - 2),
+        );
         let (tx, ty) = (fx - ix as f32, fy - iy as f32);
         let at = |a: usize, b: usize| self.h[a * self.n + b];
         let h0 = at(ix, iy) * (1.0 - ty) + at(ix, iy + 1) * ty;
@@ -189,7 +192,8 @@ pub fn generate(kind: TerrainKind, level: u8, variant: u32) -> Tile {
         TerrainKind::Flat => None,
         TerrainKind::Rough => {
             // legged_gym: uniform noise on a coarser grid (downsampled_scale 0.2 m), upsampled.
-            let mut rng = ChaCha8Rng::seed_from_u64(0x7e11a1 ^ ((level as u64) << 8) ^ variant as u64);
+            let mut rng =
+                ChaCha8Rng::seed_from_u64(0x7e11a1 ^ ((level as u64) << 8) ^ variant as u64);
             let coarse = HeightGrid {
                 n: (TILE / 0.2) as usize + 1,
                 scale: 0.2,
@@ -207,7 +211,9 @@ pub fn generate(kind: TerrainKind, level: u8, variant: u32) -> Tile {
         TerrainKind::Stairs => Some(HeightGrid::from_fn(TILE, HORIZONTAL_SCALE, |x, y| {
             // Pyramid stairs: one step per step_width from the sub-tile edge to the platform.
             let d = (SUB_TILE / 2.0 - sub(x).abs()).min(SUB_TILE / 2.0 - sub(y).abs());
-            let steps = (d / p.step_width).floor().min(((SUB_TILE - PLATFORM) / 2.0 / p.step_width).floor());
+            let steps = (d / p.step_width)
+                .floor()
+                .min(((SUB_TILE - PLATFORM) / 2.0 / p.step_width).floor());
             sign * steps * p.step_height
         })),
         TerrainKind::Slopes => Some(HeightGrid::from_fn(TILE, HORIZONTAL_SCALE, |x, y| {
@@ -231,7 +237,11 @@ impl TerrainSet {
         let variants = if kind == TerrainKind::Flat { 1 } else { 2 };
         TerrainSet {
             tiles: (0..LEVELS)
-                .map(|l| (0..variants).map(|v| Arc::new(generate(kind, l, v))).collect())
+                .map(|l| {
+                    (0..variants)
+                        .map(|v| Arc::new(generate(kind, l, v)))
+                        .collect()
+                })
                 .collect(),
         }
     }
@@ -291,6 +301,10 @@ mod tests {
         for k in TerrainKind::ALL {
             assert_eq!(k.to_string().parse::<TerrainKind>().unwrap(), k);
         }
-        assert!("lava".parse::<TerrainKind>().unwrap_err().to_string().contains("flat, rough"));
+        assert!("lava"
+            .parse::<TerrainKind>()
+            .unwrap_err()
+            .to_string()
+            .contains("flat, rough"));
     }
 }

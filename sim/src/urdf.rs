@@ -86,7 +86,11 @@ fn rot_mat(r: Rotation) -> [[f32; 3]; 3] {
     let m = rapier3d::math::Matrix::from_quat(r);
     // glam matrices are column-major; return rows.
     let c = m.to_cols_array_2d();
-    [[c[0][0], c[1][0], c[2][0]], [c[0][1], c[1][1], c[2][1]], [c[0][2], c[1][2], c[2][2]]]
+    [
+        [c[0][0], c[1][0], c[2][0]],
+        [c[0][1], c[1][1], c[2][1]],
+        [c[0][2], c[1][2], c[2][2]],
+    ]
 }
 
 fn mat_mul(a: &[[f32; 3]; 3], b: &[[f32; 3]; 3]) -> [[f32; 3]; 3] {
@@ -167,15 +171,26 @@ impl RobotModel {
 
     /// Parses URDF text (named `path` in errors) against the preset's joints and feet.
     pub fn from_str(path: &Path, text: &str, preset: &Preset) -> Result<RobotModel> {
-        let err = |element: String, message: String| Error::Urdf { path: path.to_path_buf(), element, message };
+        let err = |element: String, message: String| Error::Urdf {
+            path: path.to_path_buf(),
+            element,
+            message,
+        };
         let robot = urdf_rs::read_from_string(text)
             .map_err(|e| err("document".into(), format!("not a valid urdf: {e}")))?;
-        let link_idx: HashMap<&str, usize> =
-            robot.links.iter().enumerate().map(|(i, l)| (l.name.as_str(), i)).collect();
+        let link_idx: HashMap<&str, usize> = robot
+            .links
+            .iter()
+            .enumerate()
+            .map(|(i, l)| (l.name.as_str(), i))
+            .collect();
         for j in &robot.joints {
             for l in [&j.parent.link, &j.child.link] {
                 if !link_idx.contains_key(l.as_str()) {
-                    return Err(err(format!("joint {}", j.name), format!("refers to link {l:?}, which the file does not define")));
+                    return Err(err(
+                        format!("joint {}", j.name),
+                        format!("refers to link {l:?}, which the file does not define"),
+                    ));
                 }
             }
         }
@@ -183,7 +198,10 @@ impl RobotModel {
         // or one attached to a parent by a `floating` joint.
         let base_name = preset.base_link.as_str();
         if !link_idx.contains_key(base_name) {
-            return Err(err(format!("link {base_name}"), "base link named in the preset is missing".into()));
+            return Err(err(
+                format!("link {base_name}"),
+                "base link named in the preset is missing".into(),
+            ));
         }
         if let Some(j) = robot.joints.iter().find(|j| j.child.link == base_name) {
             if j.joint_type != urdf_rs::JointType::Floating {
@@ -194,7 +212,9 @@ impl RobotModel {
             }
         }
         // Actuated joints: exactly the preset's, all revolute.
-        let movable = |t: &urdf_rs::JointType| !matches!(t, urdf_rs::JointType::Fixed | urdf_rs::JointType::Floating);
+        let movable = |t: &urdf_rs::JointType| {
+            !matches!(t, urdf_rs::JointType::Fixed | urdf_rs::JointType::Floating)
+        };
         for j in robot.joints.iter().filter(|j| movable(&j.joint_type)) {
             if !preset.joints.contains(&j.name) {
                 return Err(err(
@@ -205,30 +225,50 @@ impl RobotModel {
         }
         for name in &preset.joints {
             match robot.joints.iter().find(|j| &j.name == name) {
-                None => return Err(err(format!("joint {name}"), "actuated joint named in the preset is missing".into())),
+                None => {
+                    return Err(err(
+                        format!("joint {name}"),
+                        "actuated joint named in the preset is missing".into(),
+                    ))
+                }
                 Some(j) if j.joint_type != urdf_rs::JointType::Revolute => {
-                    return Err(err(format!("joint {name}"), format!("type {:?}; expected revolute", j.joint_type)))
+                    return Err(err(
+                        format!("joint {name}"),
+                        format!("type {:?}; expected revolute", j.joint_type),
+                    ))
                 }
                 Some(j) if v3(&j.axis.xyz).length() < 1e-6 => {
-                    return Err(err(format!("joint {name}"), "axis is zero; expected a unit axis".into()))
+                    return Err(err(
+                        format!("joint {name}"),
+                        "axis is zero; expected a unit axis".into(),
+                    ))
                 }
                 _ => {}
             }
         }
         for foot in &preset.feet {
             if !link_idx.contains_key(foot.as_str()) {
-                return Err(err(format!("link {foot}"), "foot named in the preset is missing".into()));
+                return Err(err(
+                    format!("link {foot}"),
+                    "foot named in the preset is missing".into(),
+                ));
             }
         }
 
         // Merge fixed joints: each URDF link maps to (merged body, pose in that body).
-        let parent_joint: HashMap<&str, &urdf_rs::Joint> =
-            robot.joints.iter().map(|j| (j.child.link.as_str(), j)).collect();
+        let parent_joint: HashMap<&str, &urdf_rs::Joint> = robot
+            .joints
+            .iter()
+            .map(|j| (j.child.link.as_str(), j))
+            .collect();
         let mut body_of: HashMap<&str, (usize, Pose)> = HashMap::new();
         let mut bodies: Vec<&str> = vec![base_name];
         body_of.insert(base_name, (0, Pose::IDENTITY));
         for name in &preset.joints {
-            let j = parent_joint.values().find(|j| &j.name == name).expect("checked above");
+            let j = parent_joint
+                .values()
+                .find(|j| &j.name == name)
+                .expect("checked above");
             bodies.push(j.child.link.as_str());
         }
         for (i, b) in bodies.iter().enumerate() {
@@ -241,10 +281,16 @@ impl RobotModel {
             let mut guard = 0;
             while !body_of.contains_key(cur) {
                 let Some(j) = parent_joint.get(cur) else {
-                    return Err(err(format!("link {}", l.name), "is not connected to the base".into()));
+                    return Err(err(
+                        format!("link {}", l.name),
+                        "is not connected to the base".into(),
+                    ));
                 };
                 if movable(&j.joint_type) || j.joint_type == urdf_rs::JointType::Floating {
-                    return Err(err(format!("link {}", l.name), "hangs from a joint that is neither fixed nor actuated".into()));
+                    return Err(err(
+                        format!("link {}", l.name),
+                        "hangs from a joint that is neither fixed nor actuated".into(),
+                    ));
                 }
                 chain = pose(&j.origin) * chain;
                 cur = j.parent.link.as_str();
@@ -261,7 +307,11 @@ impl RobotModel {
         for (bi, b) in bodies.iter().enumerate() {
             let mut parts = Vec::new();
             let mut shapes = Vec::new();
-            for l in robot.links.iter().filter(|l| body_of[l.name.as_str()].0 == bi) {
+            for l in robot
+                .links
+                .iter()
+                .filter(|l| body_of[l.name.as_str()].0 == bi)
+            {
                 let (_, lp) = body_of[l.name.as_str()];
                 let ip = lp * pose(&l.inertial.origin);
                 let it = &l.inertial.inertia;
@@ -282,14 +332,26 @@ impl RobotModel {
             }
             let (mass, com, inertia) = combine(&parts);
             if mass <= 0.0 {
-                return Err(err(format!("link {b}"), "has no mass; every moving body needs an <inertial>".into()));
+                return Err(err(
+                    format!("link {b}"),
+                    "has no mass; every moving body needs an <inertial>".into(),
+                ));
             }
-            links.push(LinkModel { name: b.to_string(), mass, com, inertia, shapes });
+            links.push(LinkModel {
+                name: b.to_string(),
+                mass,
+                com,
+                inertia,
+                shapes,
+            });
         }
 
         let mut joints = Vec::with_capacity(12);
         for (k, name) in preset.joints.iter().enumerate() {
-            let j = parent_joint.values().find(|j| &j.name == name).expect("checked above");
+            let j = parent_joint
+                .values()
+                .find(|j| &j.name == name)
+                .expect("checked above");
             let (pb, pp) = body_of[j.parent.link.as_str()];
             joints.push(JointModel {
                 name: name.clone(),
@@ -302,18 +364,30 @@ impl RobotModel {
         let mut feet = Vec::with_capacity(4);
         for foot in &preset.feet {
             let (b, fp) = body_of[foot.as_str()];
-            let link = robot.links.iter().find(|l| &l.name == foot).expect("checked above");
+            let link = robot
+                .links
+                .iter()
+                .find(|l| &l.name == foot)
+                .expect("checked above");
             let radius = link.collision.iter().find_map(|c| match c.geometry {
                 urdf_rs::Geometry::Sphere { radius } => Some(radius as f32),
                 _ => None,
             });
             let Some(radius) = radius else {
-                return Err(err(format!("link {foot}"), "foot has no sphere collision; expected one <sphere>".into()));
+                return Err(err(
+                    format!("link {foot}"),
+                    "foot has no sphere collision; expected one <sphere>".into(),
+                ));
             };
             let centre = fp * pose(&link.collision[0].origin);
             feet.push((b, centre.translation, radius));
         }
         let total_mass = links.iter().map(|l| l.mass).sum();
-        Ok(RobotModel { links, joints, feet, total_mass })
+        Ok(RobotModel {
+            links,
+            joints,
+            feet,
+            total_mass,
+        })
     }
 }

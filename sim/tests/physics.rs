@@ -5,7 +5,19 @@ use gaitsweep_sim::{EnvConfig, Preset, TerrainKind, VecEnv};
 
 fn env(robot: &str, terrain: TerrainKind, n: usize, seed: u64) -> VecEnv {
     let p = Preset::load(robot).unwrap();
-    VecEnv::new(&p, EnvConfig { terrain, num_envs: n, w1: 7.0, w2: -6.0, seed, difficulty: Some(0), episode_seconds: 20.0 }).unwrap()
+    VecEnv::new(
+        &p,
+        EnvConfig {
+            terrain,
+            num_envs: n,
+            w1: 7.0,
+            w2: -6.0,
+            seed,
+            difficulty: Some(0),
+            episode_seconds: 20.0,
+        },
+    )
+    .unwrap()
 }
 
 fn stands_still(robot: &str, terrain: TerrainKind) {
@@ -15,11 +27,17 @@ fn stands_still(robot: &str, terrain: TerrainKind) {
     let zeros = vec![0.0; e.num_envs() * 12];
     for s in 0..steps {
         let r = e.step(&zeros).unwrap();
-        assert!(!r.dones.iter().any(|d| *d), "{robot} on {terrain}: a robot fell or timed out at step {s} under zero action");
+        assert!(
+            !r.dones.iter().any(|d| *d),
+            "{robot} on {terrain}: a robot fell or timed out at step {s} under zero action"
+        );
     }
     for (i, (h, tilt)) in e.base_heights_and_tilts().into_iter().enumerate() {
         eprintln!("{robot} {terrain} robot {i}: height {h:.4} (nominal {nominal}), tilt {tilt:.4}");
-        assert!((h - nominal).abs() <= 0.05 * nominal, "{robot} on {terrain}: robot {i} base height {h} not within 5% of {nominal}");
+        assert!(
+            (h - nominal).abs() <= 0.05 * nominal,
+            "{robot} on {terrain}: robot {i} base height {h} not within 5% of {nominal}"
+        );
         assert!(tilt < 0.1, "{robot} on {terrain}: robot {i} tilt {tilt}");
     }
 }
@@ -55,7 +73,10 @@ fn a_tipped_robot_is_detected_as_fallen_and_reset() {
     let mut fell_at = None;
     for s in 0..100 {
         let r = e.step(&zeros).unwrap();
-        assert!(!r.dones[0] && !r.dones[2], "upright robots must not be done");
+        assert!(
+            !r.dones[0] && !r.dones[2],
+            "upright robots must not be done"
+        );
         if r.dones[1] {
             assert!(!r.timeouts[1], "a fall is not a timeout");
             assert!(r.terms.iter().all(|t| t.is_finite()));
@@ -67,9 +88,15 @@ fn a_tipped_robot_is_detected_as_fallen_and_reset() {
     // Reset: the new episode's observation shows an upright base (projected gravity z = -1).
     let od = e.obs_dim();
     let g_z = e.observations()[od + 8];
-    assert!(g_z < -0.95, "robot not reset upright, projected gravity z = {g_z}");
+    assert!(
+        g_z < -0.95,
+        "robot not reset upright, projected gravity z = {g_z}"
+    );
     let (h, tilt) = e.base_heights_and_tilts()[1];
-    assert!(tilt < 0.05 && h > 0.3, "after reset: height {h}, tilt {tilt}");
+    assert!(
+        tilt < 0.05 && h > 0.3,
+        "after reset: height {h}, tilt {tilt}"
+    );
 }
 
 fn rollout(seed: u64, steps: usize) -> Vec<f32> {
@@ -78,7 +105,9 @@ fn rollout(seed: u64, steps: usize) -> Vec<f32> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(42);
     let mut actions = vec![0.0f32; 4 * 12];
     for _ in 0..steps {
-        actions.iter_mut().for_each(|a| *a = rng.random_range(-0.5..0.5));
+        actions
+            .iter_mut()
+            .for_each(|a| *a = rng.random_range(-0.5..0.5));
         e.step(&actions).unwrap();
     }
     e.observations().to_vec()
@@ -88,9 +117,15 @@ fn rollout(seed: u64, steps: usize) -> Vec<f32> {
 fn same_seed_same_actions_give_bit_identical_observations() {
     let a = rollout(11, 1000);
     let b = rollout(11, 1000);
-    assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()), "runs with the same seed diverged");
+    assert!(
+        a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+        "runs with the same seed diverged"
+    );
     let c = rollout(12, 1000);
-    assert!(a.iter().zip(&c).any(|(x, y)| x != y), "different seeds gave identical runs");
+    assert!(
+        a.iter().zip(&c).any(|(x, y)| x != y),
+        "different seeds gave identical runs"
+    );
 }
 
 #[test]
@@ -99,7 +134,11 @@ fn the_height_scan_reads_a_known_heightfield() {
     use gaitsweep_sim::terrain::{HeightGrid, Tile};
     let p = Preset::load("anymal").unwrap();
     // A plane h = 0.1 x + 0.05 y: bilinear interpolation reproduces it exactly.
-    let tile = Tile { kind: TerrainKind::Rough, level: 0, grid: Some(HeightGrid::from_fn(24.0, 0.1, |x, y| 0.1 * x + 0.05 * y)) };
+    let tile = Tile {
+        kind: TerrainKind::Rough,
+        level: 0,
+        grid: Some(HeightGrid::from_fn(24.0, 0.1, |x, y| 0.1 * x + 0.05 * y)),
+    };
     for yaw in [0.0f32, std::f32::consts::FRAC_PI_2, 0.7] {
         let base = [1.0f32, -2.0, 0.6];
         let mut out = vec![0.0; p.scan_len()];
@@ -107,9 +146,17 @@ fn the_height_scan_reads_a_known_heightfield() {
         let mut i = 0;
         for &sx in &p.observation.scan_x {
             for &sy in &p.observation.scan_y {
-                let (x, y) = (base[0] + yaw.cos() * sx - yaw.sin() * sy, base[1] + yaw.sin() * sx + yaw.cos() * sy);
-                let want = (base[2] - p.nominal_base_height - (0.1 * x + 0.05 * y)).clamp(-1.0, 1.0) * 5.0;
-                assert!((out[i] - want).abs() < 1e-4, "yaw {yaw} point ({sx}, {sy}): {} vs {want}", out[i]);
+                let (x, y) = (
+                    base[0] + yaw.cos() * sx - yaw.sin() * sy,
+                    base[1] + yaw.sin() * sx + yaw.cos() * sy,
+                );
+                let want =
+                    (base[2] - p.nominal_base_height - (0.1 * x + 0.05 * y)).clamp(-1.0, 1.0) * 5.0;
+                assert!(
+                    (out[i] - want).abs() < 1e-4,
+                    "yaw {yaw} point ({sx}, {sy}): {} vs {want}",
+                    out[i]
+                );
                 i += 1;
             }
         }
@@ -120,13 +167,34 @@ fn the_height_scan_reads_a_known_heightfield() {
 fn the_physics_terrain_matches_the_tile_heights() {
     for terrain in [TerrainKind::Rough, TerrainKind::Stairs, TerrainKind::Slopes] {
         let p = Preset::load("anymal").unwrap();
-        let mut e = VecEnv::new(&p, EnvConfig { terrain, num_envs: 2, w1: 7.0, w2: -6.0, seed: 1, difficulty: Some(6), episode_seconds: 20.0 }).unwrap();
+        let mut e = VecEnv::new(
+            &p,
+            EnvConfig {
+                terrain,
+                num_envs: 2,
+                w1: 7.0,
+                w2: -6.0,
+                seed: 1,
+                difficulty: Some(6),
+                episode_seconds: 20.0,
+            },
+        )
+        .unwrap();
         for i in 0..2 {
             // Grid vertices, where the collider's triangles and the bilinear heights agree.
-            for (x, y) in [(0.0f32, 0.0f32), (1.3, -0.7), (-3.2, 2.5), (5.5, 5.1), (-9.0, -10.0)] {
+            for (x, y) in [
+                (0.0f32, 0.0f32),
+                (1.3, -0.7),
+                (-3.2, 2.5),
+                (5.5, 5.1),
+                (-9.0, -10.0),
+            ] {
                 let want = e.tile_height(i, x, y);
                 let got = e.ray_height(i, x, y).expect("ray hits the terrain");
-                assert!((got - want).abs() < 2e-3, "{terrain} robot {i} at ({x}, {y}): collider {got} vs tile {want}");
+                assert!(
+                    (got - want).abs() < 2e-3,
+                    "{terrain} robot {i} at ({x}, {y}): collider {got} vs tile {want}"
+                );
             }
         }
     }
@@ -145,5 +213,9 @@ fn a_gait_renders_to_a_gif() {
     let path = dir.path().join("gait.gif");
     gaitsweep_sim::render::write_gif(&path, e.tile(0), &frames, e.body_half_extents(), 10).unwrap();
     let bytes = std::fs::read(&path).unwrap();
-    assert!(bytes.starts_with(b"GIF89a") && bytes.len() > 5_000, "{} bytes", bytes.len());
+    assert!(
+        bytes.starts_with(b"GIF89a") && bytes.len() > 5_000,
+        "{} bytes",
+        bytes.len()
+    );
 }

@@ -20,7 +20,10 @@ use yaml_rust2::{Yaml, YamlLoader};
 const BINARIES: [&str; 2] = ["coordinator", "worker"];
 
 fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("tests/ has a parent").to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("tests/ has a parent")
+        .to_path_buf()
 }
 
 fn deploy_dir() -> PathBuf {
@@ -30,7 +33,10 @@ fn deploy_dir() -> PathBuf {
 /// `target/release/NAME`, located from this test executable (`target/release/deps/deploy-*`).
 fn binary(name: &str) -> PathBuf {
     let exe = std::env::current_exe().expect("current exe");
-    let dir = exe.parent().and_then(Path::parent).expect("test executable lives in target/<profile>/deps");
+    let dir = exe
+        .parent()
+        .and_then(Path::parent)
+        .expect("test executable lives in target/<profile>/deps");
     let path = dir.join(name);
     assert!(
         path.is_file(),
@@ -59,7 +65,10 @@ fn files_under(dir: &Path) -> Vec<PathBuf> {
 }
 
 fn rel(path: &Path) -> String {
-    path.strip_prefix(repo_root()).unwrap_or(path).display().to_string()
+    path.strip_prefix(repo_root())
+        .unwrap_or(path)
+        .display()
+        .to_string()
 }
 
 fn read(path: &Path) -> String {
@@ -67,7 +76,10 @@ fn read(path: &Path) -> String {
 }
 
 fn is_yaml(path: &Path) -> bool {
-    matches!(path.extension().and_then(|e| e.to_str()), Some("yaml" | "yml"))
+    matches!(
+        path.extension().and_then(|e| e.to_str()),
+        Some("yaml" | "yml")
+    )
 }
 
 // ---------------------------------------------------------------------------------------
@@ -181,24 +193,46 @@ fn binary_name(word: &str) -> Option<&'static str> {
 fn image_binary(word: &str) -> Option<&'static str> {
     let base = word.rsplit('/').next().unwrap_or(word);
     let name = base.split([':', '@']).next().unwrap_or(base);
-    BINARIES.into_iter().find(|b| name == format!("gaitsweep-{b}"))
+    BINARIES
+        .into_iter()
+        .find(|b| name == format!("gaitsweep-{b}"))
 }
 
 /// Words that may stand before a binary in a command without being the command themselves.
 fn is_prefix_word(word: &str) -> bool {
-    matches!(word, "exec" | "env" | "srun" | "sudo" | "nohup" | "time" | "command" | "!")
-        || word.starts_with('-')
-        || word.split_once('=').is_some_and(|(k, _)| !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'))
+    matches!(
+        word,
+        "exec" | "env" | "srun" | "sudo" | "nohup" | "time" | "command" | "!"
+    ) || word.starts_with('-')
+        || word.split_once('=').is_some_and(|(k, _)| {
+            !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+        })
 }
 
 /// `docker run` options that take no value.
-const DOCKER_RUN_SWITCHES: [&str; 14] =
-    ["-d", "--detach", "--rm", "-i", "-t", "-it", "-ti", "--interactive", "--tty", "--init", "--privileged", "--read-only", "-P", "--publish-all"];
+const DOCKER_RUN_SWITCHES: [&str; 14] = [
+    "-d",
+    "--detach",
+    "--rm",
+    "-i",
+    "-t",
+    "-it",
+    "-ti",
+    "--interactive",
+    "--tty",
+    "--init",
+    "--privileged",
+    "--read-only",
+    "-P",
+    "--publish-all",
+];
 
 /// Invocations in one simple command (a run of words between operators).
 fn invocations_in_command(words: &[String], source: &str, out: &mut Vec<Invocation>) {
     // `docker run [options] IMAGE [args]`: the args go to the image's entrypoint.
-    if words.first().map(String::as_str) == Some("docker") && words.get(1).map(String::as_str) == Some("run") {
+    if words.first().map(String::as_str) == Some("docker")
+        && words.get(1).map(String::as_str) == Some("run")
+    {
         // The image is the first word that is neither an option nor an option's value.
         let mut i = 2;
         while i < words.len() && words[i].starts_with('-') {
@@ -207,7 +241,11 @@ fn invocations_in_command(words: &[String], source: &str, out: &mut Vec<Invocati
             i += if takes_value { 2 } else { 1 };
         }
         if let Some(binary) = words.get(i).and_then(|w| image_binary(w)) {
-            out.push(Invocation { source: source.to_string(), binary: binary.to_string(), args: words[i + 1..].to_vec() });
+            out.push(Invocation {
+                source: source.to_string(),
+                binary: binary.to_string(),
+                args: words[i + 1..].to_vec(),
+            });
         }
         return;
     }
@@ -217,7 +255,11 @@ fn invocations_in_command(words: &[String], source: &str, out: &mut Vec<Invocati
         if w == "--" {
             start_ok = true;
         } else if let Some(b) = binary_name(w).filter(|_| start_ok) {
-            out.push(Invocation { source: source.to_string(), binary: b.to_string(), args: words[i + 1..].to_vec() });
+            out.push(Invocation {
+                source: source.to_string(),
+                binary: b.to_string(),
+                args: words[i + 1..].to_vec(),
+            });
             return;
         } else if !is_prefix_word(w) {
             start_ok = false;
@@ -294,10 +336,14 @@ fn systemd_invocations(text: &str, file: &str, out: &mut Vec<Invocation>) {
         }
         logical.push_str(line);
         let entry = std::mem::take(&mut logical);
-        let Some((key, value)) = entry.trim().split_once('=') else { continue };
+        let Some((key, value)) = entry.trim().split_once('=') else {
+            continue;
+        };
         if key.trim().starts_with("Exec") {
             // Command prefixes of systemd.service(5): - @ : + ! !!
-            let value = value.trim_start().trim_start_matches(['-', '@', ':', '+', '!']);
+            let value = value
+                .trim_start()
+                .trim_start_matches(['-', '@', ':', '+', '!']);
             shell_invocations(value, file, start, out);
         }
     }
@@ -309,7 +355,8 @@ fn extra_args_invocations(text: &str, file: &str, out: &mut Vec<Invocation>) {
     for (i, line) in text.lines().enumerate() {
         let line = line.trim_start_matches(['#', ' ']);
         let line = line.strip_prefix("Environment=").unwrap_or(line);
-        let (binary, mut args, value) = if let Some(v) = line.strip_prefix("GAITSWEEP_WORKER_ARGS=") {
+        let (binary, mut args, value) = if let Some(v) = line.strip_prefix("GAITSWEEP_WORKER_ARGS=")
+        {
             ("worker", vec![], v)
         } else if let Some(v) = line.strip_prefix("GAITSWEEP_COORDINATOR_ARGS=") {
             ("coordinator", vec!["serve".to_string()], v)
@@ -320,7 +367,11 @@ fn extra_args_invocations(text: &str, file: &str, out: &mut Vec<Invocation>) {
             Tok::Word(w) => Some(w),
             Tok::Op => None,
         }));
-        out.push(Invocation { source: format!("{file}:{}", i + 1), binary: binary.to_string(), args });
+        out.push(Invocation {
+            source: format!("{file}:{}", i + 1),
+            binary: binary.to_string(),
+            args,
+        });
     }
 }
 
@@ -328,7 +379,8 @@ fn extra_args_invocations(text: &str, file: &str, out: &mut Vec<Invocation>) {
 fn dockerfile_words(value: &str) -> Vec<String> {
     let value = value.trim();
     if value.starts_with('[') {
-        serde_json::from_str::<Vec<String>>(value).unwrap_or_else(|e| panic!("bad exec-form JSON {value:?}: {e}"))
+        serde_json::from_str::<Vec<String>>(value)
+            .unwrap_or_else(|e| panic!("bad exec-form JSON {value:?}: {e}"))
     } else {
         shell_tokens(value)
             .into_iter()
@@ -363,7 +415,10 @@ fn dockerfile_invocations(text: &str, file: &str, out: &mut Vec<Invocation>) {
         }
         logical.push_str(line);
         let instr = std::mem::take(&mut logical);
-        let (op, rest) = instr.trim().split_once(char::is_whitespace).unwrap_or((instr.trim(), ""));
+        let (op, rest) = instr
+            .trim()
+            .split_once(char::is_whitespace)
+            .unwrap_or((instr.trim(), ""));
         match op.to_ascii_uppercase().as_str() {
             "FROM" => {
                 entrypoint = None;
@@ -373,7 +428,10 @@ fn dockerfile_invocations(text: &str, file: &str, out: &mut Vec<Invocation>) {
                 // Skip RUN options such as --mount=...; the rest is shell.
                 let mut body = rest.trim_start();
                 while body.starts_with("--") {
-                    body = body.split_once(char::is_whitespace).map_or("", |(_, r)| r).trim_start();
+                    body = body
+                        .split_once(char::is_whitespace)
+                        .map_or("", |(_, r)| r)
+                        .trim_start();
                 }
                 shell_invocations(body, file, start, out);
             }
@@ -390,7 +448,11 @@ fn dockerfile_invocations(text: &str, file: &str, out: &mut Vec<Invocation>) {
     };
     if words.first().is_some_and(|w| binary_name(w).is_some()) {
         let binary = binary_name(&words.remove(0)).expect("checked").to_string();
-        out.push(Invocation { source: format!("{file}:{line} (ENTRYPOINT + CMD)"), binary, args: words });
+        out.push(Invocation {
+            source: format!("{file}:{line} (ENTRYPOINT + CMD)"),
+            binary,
+            args: words,
+        });
     }
 }
 
@@ -420,14 +482,26 @@ fn yaml_invocations(doc: &Yaml, path: &str, out: &mut Vec<Invocation>) {
                 Some(cmd) if cmd.first().is_some_and(|c| binary_name(c).is_some()) => {
                     let binary = binary_name(&cmd[0]).expect("checked").to_string();
                     let all = cmd[1..].iter().cloned().chain(args).collect();
-                    out.push(Invocation { source: path.to_string(), binary, args: all });
+                    out.push(Invocation {
+                        source: path.to_string(),
+                        binary,
+                        args: all,
+                    });
                 }
                 Some(cmd) if cmd.len() >= 3 && cmd[0].ends_with("sh") && cmd[1] == "-c" => {
                     shell_invocations(&cmd[2], path, 1, out);
                 }
-                None if image.is_some_and(|i| image_binary(i).is_some()) && get("args").is_some() => {
-                    let binary = image_binary(image.expect("checked")).expect("checked").to_string();
-                    out.push(Invocation { source: path.to_string(), binary, args });
+                None if image.is_some_and(|i| image_binary(i).is_some())
+                    && get("args").is_some() =>
+                {
+                    let binary = image_binary(image.expect("checked"))
+                        .expect("checked")
+                        .to_string();
+                    out.push(Invocation {
+                        source: path.to_string(),
+                        binary,
+                        args,
+                    });
                 }
                 _ => {}
             }
@@ -449,7 +523,8 @@ fn yaml_invocations(doc: &Yaml, path: &str, out: &mut Vec<Invocation>) {
 }
 
 fn load_yaml(path: &Path) -> Vec<Yaml> {
-    YamlLoader::load_from_str(&read(path)).unwrap_or_else(|e| panic!("{} is not valid YAML: {e}", rel(path)))
+    YamlLoader::load_from_str(&read(path))
+        .unwrap_or_else(|e| panic!("{} is not valid YAML: {e}", rel(path)))
 }
 
 /// Every invocation of a gaitsweep binary in `deploy/`, and the files that must have one.
@@ -458,14 +533,21 @@ fn deploy_invocations() -> (Vec<Invocation>, Vec<String>) {
     let mut must_have = Vec::new();
     for path in files_under(&deploy_dir()) {
         let file = rel(&path);
-        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default().to_string();
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or_default()
+            .to_string();
         let before = out.len();
         if is_yaml(&path) {
             for (i, doc) in load_yaml(&path).iter().enumerate() {
                 let n = out.len();
                 yaml_invocations(doc, &format!("{file} (document {})", i + 1), &mut out);
                 let kind = doc["kind"].as_str().unwrap_or_default();
-                if matches!(kind, "Deployment" | "StatefulSet" | "DaemonSet" | "Job" | "CronJob") {
+                if matches!(
+                    kind,
+                    "Deployment" | "StatefulSet" | "DaemonSet" | "Job" | "CronJob"
+                ) {
                     assert!(out.len() > n, "{file} document {}: a {kind} that runs no gaitsweep binary with an explicit command", i + 1);
                 }
             }
@@ -503,18 +585,25 @@ struct Help(BTreeMap<(String, Option<String>), String>);
 
 impl Help {
     fn get(&mut self, binary: &str, sub: Option<&str>) -> &str {
-        self.0.entry((binary.to_string(), sub.map(str::to_string))).or_insert_with(|| {
-            let mut cmd = Command::new(binary_path(binary));
-            cmd.args(sub).arg("--help").env_remove("GAITSWEEP_TOKEN").env_remove("GAITSWEEP_URL");
-            let out = cmd.output().unwrap_or_else(|e| panic!("run {binary} --help: {e}"));
-            assert!(
-                out.status.success(),
-                "`{binary} {} --help` failed: {}",
-                sub.unwrap_or(""),
-                String::from_utf8_lossy(&out.stderr)
-            );
-            String::from_utf8(out.stdout).expect("help is UTF-8")
-        })
+        self.0
+            .entry((binary.to_string(), sub.map(str::to_string)))
+            .or_insert_with(|| {
+                let mut cmd = Command::new(binary_path(binary));
+                cmd.args(sub)
+                    .arg("--help")
+                    .env_remove("GAITSWEEP_TOKEN")
+                    .env_remove("GAITSWEEP_URL");
+                let out = cmd
+                    .output()
+                    .unwrap_or_else(|e| panic!("run {binary} --help: {e}"));
+                assert!(
+                    out.status.success(),
+                    "`{binary} {} --help` failed: {}",
+                    sub.unwrap_or(""),
+                    String::from_utf8_lossy(&out.stderr)
+                );
+                String::from_utf8(out.stdout).expect("help is UTF-8")
+            })
     }
 
     /// Subcommand names listed under `Commands:` of the top-level help.
@@ -560,16 +649,30 @@ fn check(help: &mut Help, inv: &Invocation) -> Vec<String> {
         _ => None,
     };
     let text = help.get(&inv.binary, sub).to_string();
-    let shown = format!("{}{}", inv.binary, sub.map(|s| format!(" {s}")).unwrap_or_default());
+    let shown = format!(
+        "{}{}",
+        inv.binary,
+        sub.map(|s| format!(" {s}")).unwrap_or_default()
+    );
     inv.args
         .iter()
         .skip(usize::from(sub.is_some()))
         .filter(|a| a.starts_with('-') && a.len() > 1 && *a != "--")
         // values such as `-3.5` or `-$(X)` are not flags
         .filter(|a| !a[1..].starts_with(|c: char| c.is_ascii_digit() || c == '.' || c == '$'))
-        .map(|a| a.split('=').next().expect("split yields one part").to_string())
+        .map(|a| {
+            a.split('=')
+                .next()
+                .expect("split yields one part")
+                .to_string()
+        })
         .filter(|flag| !help_lists(&text, flag))
-        .map(|flag| format!("{}: `{shown}` does not accept {flag} (not in `{shown} --help`)", inv.source))
+        .map(|flag| {
+            format!(
+                "{}: `{shown}` does not accept {flag} (not in `{shown} --help`)",
+                inv.source
+            )
+        })
         .collect()
 }
 
@@ -579,8 +682,15 @@ fn check(help: &mut Help, inv: &Invocation) -> Vec<String> {
 
 #[test]
 fn every_yaml_file_in_deploy_parses() {
-    let yamls: Vec<PathBuf> = files_under(&deploy_dir()).into_iter().filter(|p| is_yaml(p)).collect();
-    assert!(!yamls.is_empty(), "no YAML files under {}", deploy_dir().display());
+    let yamls: Vec<PathBuf> = files_under(&deploy_dir())
+        .into_iter()
+        .filter(|p| is_yaml(p))
+        .collect();
+    assert!(
+        !yamls.is_empty(),
+        "no YAML files under {}",
+        deploy_dir().display()
+    );
     let mut problems = Vec::new();
     for path in &yamls {
         match YamlLoader::load_from_str(&read(path)) {
@@ -595,7 +705,11 @@ fn every_yaml_file_in_deploy_parses() {
                     } else if rel(path).starts_with("deploy/k8s") {
                         for key in ["apiVersion", "kind"] {
                             if doc[key].as_str().is_none_or(str::is_empty) {
-                                problems.push(format!("{} document {}: no {key}", rel(path), i + 1));
+                                problems.push(format!(
+                                    "{} document {}: no {key}",
+                                    rel(path),
+                                    i + 1
+                                ));
                             }
                         }
                     }
@@ -603,7 +717,11 @@ fn every_yaml_file_in_deploy_parses() {
             }
         }
     }
-    assert!(problems.is_empty(), "YAML problems in deploy/:\n{}", problems.join("\n"));
+    assert!(
+        problems.is_empty(),
+        "YAML problems in deploy/:\n{}",
+        problems.join("\n")
+    );
 }
 
 #[test]
@@ -615,25 +733,47 @@ fn every_command_line_in_deploy_uses_flags_the_binaries_accept() {
          (write the binary's name, e.g. /opt/gaitsweep/bin/worker, not a variable): {without:?}"
     );
     for binary in BINARIES {
-        assert!(invocations.iter().any(|i| i.binary == binary), "no `{binary}` command line found in deploy/");
+        assert!(
+            invocations.iter().any(|i| i.binary == binary),
+            "no `{binary}` command line found in deploy/"
+        );
     }
     let mut help = Help::default();
     let mut problems = Vec::new();
     for inv in &invocations {
         problems.extend(check(&mut help, inv));
     }
-    let listing: Vec<String> =
-        invocations.iter().map(|i| format!("  {}: {} {}", i.source, i.binary, i.args.join(" "))).collect();
-    println!("checked {} command lines:\n{}", invocations.len(), listing.join("\n"));
-    assert!(problems.is_empty(), "deploy/ uses flags the binaries do not accept:\n{}", problems.join("\n"));
+    let listing: Vec<String> = invocations
+        .iter()
+        .map(|i| format!("  {}: {} {}", i.source, i.binary, i.args.join(" ")))
+        .collect();
+    println!(
+        "checked {} command lines:\n{}",
+        invocations.len(),
+        listing.join("\n")
+    );
+    assert!(
+        problems.is_empty(),
+        "deploy/ uses flags the binaries do not accept:\n{}",
+        problems.join("\n")
+    );
 }
 
 /// The checker itself fails on what it must fail on, for every kind of file it reads.
 #[test]
 fn the_checker_catches_bad_flags_and_subcommands() {
     let mut found = Vec::new();
-    systemd_invocations("[Service]\nExecStart=/opt/gaitsweep/bin/worker --connect ${URL} \\\n  --bogus-flag 1\n", "unit", &mut found);
-    shell_invocations("set -e\nsrun --nodes=2 --cpus-per-task=4 \"$H/bin/worker\" --threads 4 --bogus-flag\n", "sbatch", 1, &mut found);
+    systemd_invocations(
+        "[Service]\nExecStart=/opt/gaitsweep/bin/worker --connect ${URL} \\\n  --bogus-flag 1\n",
+        "unit",
+        &mut found,
+    );
+    shell_invocations(
+        "set -e\nsrun --nodes=2 --cpus-per-task=4 \"$H/bin/worker\" --threads 4 --bogus-flag\n",
+        "sbatch",
+        1,
+        &mut found,
+    );
     dockerfile_invocations(
         "FROM x AS b\nCMD [\"nope\"]\nFROM y\nRUN worker --version && echo worker\nENTRYPOINT [\"coordinator\"]\nCMD [\"serve\", \"--bogus-flag\"]\n",
         "Dockerfile",
@@ -651,25 +791,46 @@ fn the_checker_catches_bad_flags_and_subcommands() {
         "md",
         &mut found,
     );
-    extra_args_invocations("#GAITSWEEP_WORKER_ARGS=--threads 16 --bogus-flag\n", "env", &mut found);
+    extra_args_invocations(
+        "#GAITSWEEP_WORKER_ARGS=--threads 16 --bogus-flag\n",
+        "env",
+        &mut found,
+    );
 
     let mut help = Help::default();
-    let by_source: BTreeMap<&str, Vec<String>> =
-        found.iter().map(|inv| (inv.source.as_str(), check(&mut help, inv))).collect();
+    let by_source: BTreeMap<&str, Vec<String>> = found
+        .iter()
+        .map(|inv| (inv.source.as_str(), check(&mut help, inv)))
+        .collect();
     let shown = format!("{found:#?}");
     // `worker --version` is fine; every other invocation must be refused.
     assert_eq!(found.len(), 10, "{shown}");
-    let ok: Vec<&&str> = by_source.iter().filter(|(_, p)| p.is_empty()).map(|(s, _)| s).collect();
-    assert_eq!(ok, vec![&"Dockerfile:4"], "only `RUN worker --version` is valid: {by_source:#?}");
+    let ok: Vec<&&str> = by_source
+        .iter()
+        .filter(|(_, p)| p.is_empty())
+        .map(|(s, _)| s)
+        .collect();
+    assert_eq!(
+        ok,
+        vec![&"Dockerfile:4"],
+        "only `RUN worker --version` is valid: {by_source:#?}"
+    );
     for (source, problems) in &by_source {
         if *source != "Dockerfile:4" {
             assert!(
-                problems.iter().any(|p| p.contains("--bogus-flag") || p.contains("\"reportx\" is not a subcommand")),
+                problems
+                    .iter()
+                    .any(|p| p.contains("--bogus-flag")
+                        || p.contains("\"reportx\" is not a subcommand")),
                 "{source}: {problems:?}"
             );
         }
     }
     // A flag that is the prefix of a real one is not taken for it.
-    let prefix = Invocation { source: "p".into(), binary: "worker".into(), args: vec!["--conn".into()] };
+    let prefix = Invocation {
+        source: "p".into(),
+        binary: "worker".into(),
+        args: vec!["--conn".into()],
+    };
     assert_eq!(check(&mut help, &prefix).len(), 1);
 }

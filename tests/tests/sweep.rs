@@ -23,51 +23,119 @@ async fn two_workers_finish_a_2x2_sweep() {
     assert_eq!(sweep.cells_total, 4);
     let w1 = start_worker(tmp.path(), &coord.url(), "a");
     let w2 = start_worker(tmp.path(), &coord.url(), "b");
-    let done = wait_done(&coord, sweep.sweep_id, SWEEP_TIMEOUT, &[&coord.proc, &w1, &w2]).await;
+    let done = wait_done(
+        &coord,
+        sweep.sweep_id,
+        SWEEP_TIMEOUT,
+        &[&coord.proc, &w1, &w2],
+    )
+    .await;
     assert_eq!(done.state, pb::SweepState::Done as i32);
     assert_eq!(done.cells_done, 4);
 
     let db = coord.db().await;
-    let scores: Vec<(i64, f64, Option<String>)> =
-        sqlx::query_as("SELECT cell_id, score, final_checkpoint_sha256 FROM scores ORDER BY cell_id").fetch_all(&db).await.unwrap();
+    let scores: Vec<(i64, f64, Option<String>)> = sqlx::query_as(
+        "SELECT cell_id, score, final_checkpoint_sha256 FROM scores ORDER BY cell_id",
+    )
+    .fetch_all(&db)
+    .await
+    .unwrap();
     assert_eq!(scores.len(), 4, "one score per cell");
-    let workers: i64 = sqlx::query_scalar("SELECT COUNT(DISTINCT worker_id) FROM attempts WHERE state = 'done'").fetch_one(&db).await.unwrap();
+    let workers: i64 =
+        sqlx::query_scalar("SELECT COUNT(DISTINCT worker_id) FROM attempts WHERE state = 'done'")
+            .fetch_one(&db)
+            .await
+            .unwrap();
     assert_eq!(workers, 2, "both workers trained cells");
     for (cell, _, sha) in &scores {
         let sha = sha.as_ref().expect("final checkpoint stored");
-        let (size, path): (i64, String) = sqlx::query_as("SELECT size, path FROM checkpoints WHERE sha256 = ?").bind(sha).fetch_one(&db).await.unwrap();
+        let (size, path): (i64, String) =
+            sqlx::query_as("SELECT size, path FROM checkpoints WHERE sha256 = ?")
+                .bind(sha)
+                .fetch_one(&db)
+                .await
+                .unwrap();
         let file = coord.data.join(&path);
         assert_eq!(std::fs::metadata(&file).unwrap().len() as i64, size);
-        assert_eq!(&sha256_file(&file), sha, "stored checkpoint content matches its hash");
-        let epochs: i64 = sqlx::query_scalar("SELECT COUNT(DISTINCT epoch) FROM epoch_metrics WHERE cell_id = ?").bind(cell).fetch_one(&db).await.unwrap();
+        assert_eq!(
+            &sha256_file(&file),
+            sha,
+            "stored checkpoint content matches its hash"
+        );
+        let epochs: i64 =
+            sqlx::query_scalar("SELECT COUNT(DISTINCT epoch) FROM epoch_metrics WHERE cell_id = ?")
+                .bind(cell)
+                .fetch_one(&db)
+                .await
+                .unwrap();
         assert_eq!(epochs, 2, "learning curve of cell {cell}");
     }
     // every stored checkpoint file hashes to its name
-    for row in sqlx::query("SELECT sha256, path FROM checkpoints").fetch_all(&db).await.unwrap() {
+    for row in sqlx::query("SELECT sha256, path FROM checkpoints")
+        .fetch_all(&db)
+        .await
+        .unwrap()
+    {
         let (sha, path): (String, String) = (row.get(0), row.get(1));
         assert_eq!(sha256_file(&coord.data.join(path)), sha);
     }
-    let best = scores.iter().filter(|s| !s.1.is_nan()).max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0))).unwrap();
-    let promoted = c.get_promoted(pb::GetPromotedRequest { sweep_id: sweep.sweep_id, terrain: String::new() }).await.unwrap().into_inner();
-    assert_eq!(promoted.cell.unwrap().cell_id, best.0, "the best cell is promoted");
+    let best = scores
+        .iter()
+        .filter(|s| !s.1.is_nan())
+        .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)))
+        .unwrap();
+    let promoted = c
+        .get_promoted(pb::GetPromotedRequest {
+            sweep_id: sweep.sweep_id,
+            terrain: String::new(),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(
+        promoted.cell.unwrap().cell_id,
+        best.0,
+        "the best cell is promoted"
+    );
     assert_eq!(done.best_cell_id, best.0);
 
     // the CLI shows the grid and fetches the best model
     let out = std::process::Command::new(bin("coordinator"))
-        .args(["show", "--connect", &coord.url(), &sweep.sweep_id.to_string()])
+        .args([
+            "show",
+            "--connect",
+            &coord.url(),
+            &sweep.sweep_id.to_string(),
+        ])
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success() && text.contains('*'), "show output: {text}");
+    assert!(
+        out.status.success() && text.contains('*'),
+        "show output: {text}"
+    );
     let model = tmp.path().join("best.safetensors");
     let out = std::process::Command::new(bin("coordinator"))
-        .args(["fetch-best", "--connect", &coord.url(), &sweep.sweep_id.to_string(), "--out", model.to_str().unwrap()])
+        .args([
+            "fetch-best",
+            "--connect",
+            &coord.url(),
+            &sweep.sweep_id.to_string(),
+            "--out",
+            model.to_str().unwrap(),
+        ])
         .args(["--export", tmp.path().join("export").to_str().unwrap()])
         .output()
         .unwrap();
-    assert!(out.status.success(), "fetch-best: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "fetch-best: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert_eq!(&sha256_file(&model), best.2.as_ref().unwrap());
-    let exported = std::fs::read_dir(tmp.path().join("export")).map(|d| d.count()).unwrap_or(0);
+    let exported = std::fs::read_dir(tmp.path().join("export"))
+        .map(|d| d.count())
+        .unwrap_or(0);
     assert!(exported > 0, "fetch-best --export wrote the exported actor");
 }
 
@@ -83,28 +151,59 @@ async fn killed_worker_cell_resumes_on_another_worker() {
     let epoch: i64 = wait_for("worker a to upload a checkpoint", SWEEP_TIMEOUT, || {
         let db = db.clone();
         async move {
-            let e: Option<i64> = sqlx::query_scalar("SELECT MAX(epoch) FROM cell_checkpoints").fetch_one(&db).await.ok()?;
+            let e: Option<i64> = sqlx::query_scalar("SELECT MAX(epoch) FROM cell_checkpoints")
+                .fetch_one(&db)
+                .await
+                .ok()?;
             e.filter(|&e| e >= 1)
         }
     })
     .await;
     a.kill();
-    let state: String = sqlx::query_scalar("SELECT state FROM cells").fetch_one(&db).await.unwrap();
-    assert_eq!(state, "running", "worker a was killed mid-cell (after checkpoint of epoch {epoch})");
+    let state: String = sqlx::query_scalar("SELECT state FROM cells")
+        .fetch_one(&db)
+        .await
+        .unwrap();
+    assert_eq!(
+        state, "running",
+        "worker a was killed mid-cell (after checkpoint of epoch {epoch})"
+    );
     let b = start_worker(tmp.path(), &coord.url(), "b");
-    let done = wait_done(&coord, sweep.sweep_id, SWEEP_TIMEOUT, &[&coord.proc, &a, &b]).await;
+    let done = wait_done(
+        &coord,
+        sweep.sweep_id,
+        SWEEP_TIMEOUT,
+        &[&coord.proc, &a, &b],
+    )
+    .await;
     assert_eq!(done.cells_done, 1);
     let attempts: Vec<(String, i64)> =
-        sqlx::query_as("SELECT state, resumed_from_epoch FROM attempts ORDER BY id").fetch_all(&db).await.unwrap();
+        sqlx::query_as("SELECT state, resumed_from_epoch FROM attempts ORDER BY id")
+            .fetch_all(&db)
+            .await
+            .unwrap();
     assert_eq!(attempts.len(), 2, "{attempts:?}");
     assert_eq!(attempts[0].0, "expired");
     assert_eq!(attempts[1].0, "done");
-    assert!(attempts[1].1 >= epoch, "second attempt resumed from epoch {} (checkpoint at {epoch})", attempts[1].1);
+    assert!(
+        attempts[1].1 >= epoch,
+        "second attempt resumed from epoch {} (checkpoint at {epoch})",
+        attempts[1].1
+    );
     assert!(b.log_text().contains("resume checkpoint downloaded"));
-    let scores: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM scores").fetch_one(&db).await.unwrap();
+    let scores: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM scores")
+        .fetch_one(&db)
+        .await
+        .unwrap();
     assert_eq!(scores, 1);
-    let epochs: i64 = sqlx::query_scalar("SELECT MAX(epoch) FROM epoch_metrics").fetch_one(&db).await.unwrap();
-    assert_eq!(epochs, LONG_EPOCHS as i64, "the epoch count continues across attempts");
+    let epochs: i64 = sqlx::query_scalar("SELECT MAX(epoch) FROM epoch_metrics")
+        .fetch_one(&db)
+        .await
+        .unwrap();
+    assert_eq!(
+        epochs, LONG_EPOCHS as i64,
+        "the epoch count continues across attempts"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -120,29 +219,58 @@ async fn coordinator_killed_and_restarted_mid_sweep_completes() {
     wait_for("the first epoch metrics", SWEEP_TIMEOUT, || {
         let db = db.clone();
         async move {
-            let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM epoch_metrics").fetch_one(&db).await.ok()?;
+            let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM epoch_metrics")
+                .fetch_one(&db)
+                .await
+                .ok()?;
             (n > 0).then_some(())
         }
     })
     .await;
-    let done_before: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM scores").fetch_one(&db).await.unwrap();
-    assert!(done_before < 2, "the sweep is still running when the coordinator dies");
+    let done_before: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM scores")
+        .fetch_one(&db)
+        .await
+        .unwrap();
+    assert!(
+        done_before < 2,
+        "the sweep is still running when the coordinator dies"
+    );
     db.close().await;
     coord.proc.kill();
     // the worker keeps training and retries; restart on the same address
-    wait_for("the worker to notice the coordinator is gone", Duration::from_secs(60), || {
-        let text = w.log_text();
-        async move { text.contains("retrying").then_some(()) }
-    })
+    wait_for(
+        "the worker to notice the coordinator is gone",
+        Duration::from_secs(60),
+        || {
+            let text = w.log_text();
+            async move { text.contains("retrying").then_some(()) }
+        },
+    )
     .await;
     let coord = Coord::start(tmp.path(), &addr, &[]).await;
     let done = wait_done(&coord, sweep.sweep_id, SWEEP_TIMEOUT, &[&coord.proc, &w]).await;
     assert_eq!(done.cells_done, 2);
     let db = coord.db().await;
-    let scores: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM scores").fetch_one(&db).await.unwrap();
+    let scores: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM scores")
+        .fetch_one(&db)
+        .await
+        .unwrap();
     assert_eq!(scores, 2, "no score lost or duplicated");
-    let per_cell: i64 = sqlx::query_scalar("SELECT MAX(n) FROM (SELECT COUNT(*) AS n FROM scores GROUP BY cell_id)").fetch_one(&db).await.unwrap();
+    let per_cell: i64 = sqlx::query_scalar(
+        "SELECT MAX(n) FROM (SELECT COUNT(*) AS n FROM scores GROUP BY cell_id)",
+    )
+    .fetch_one(&db)
+    .await
+    .unwrap();
     assert_eq!(per_cell, 1);
-    let metrics: i64 = sqlx::query_scalar("SELECT COUNT(DISTINCT cell_id || '/' || epoch) FROM epoch_metrics").fetch_one(&db).await.unwrap();
-    assert_eq!(metrics, 2 * LONG_EPOCHS as i64, "every epoch of both cells stored once");
+    let metrics: i64 =
+        sqlx::query_scalar("SELECT COUNT(DISTINCT cell_id || '/' || epoch) FROM epoch_metrics")
+            .fetch_one(&db)
+            .await
+            .unwrap();
+    assert_eq!(
+        metrics,
+        2 * LONG_EPOCHS as i64,
+        "every epoch of both cells stored once"
+    );
 }

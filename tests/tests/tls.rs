@@ -10,16 +10,78 @@ use std::process::Command;
 use tonic::transport::{Certificate, Channel, ClientTlsConfig};
 
 fn openssl(dir: &Path, args: &[&str]) {
-    let st = Command::new("openssl").args(args).current_dir(dir).output().expect("openssl is needed for this test");
-    assert!(st.status.success(), "openssl {args:?}: {}", String::from_utf8_lossy(&st.stderr));
+    let st = Command::new("openssl")
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("openssl is needed for this test");
+    assert!(
+        st.status.success(),
+        "openssl {args:?}: {}",
+        String::from_utf8_lossy(&st.stderr)
+    );
 }
 
 /// A CA and a server certificate for localhost / 127.0.0.1 signed by it.
 fn make_certs(dir: &Path) {
-    openssl(dir, &["req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "ca.key", "-out", "ca.pem", "-days", "2", "-subj", "/CN=gaitsweep test ca"]);
-    openssl(dir, &["req", "-newkey", "rsa:2048", "-nodes", "-keyout", "server.key", "-out", "server.csr", "-subj", "/CN=localhost"]);
-    std::fs::write(dir.join("ext.cnf"), "subjectAltName=DNS:localhost,IP:127.0.0.1\nbasicConstraints=CA:FALSE\n").unwrap();
-    openssl(dir, &["x509", "-req", "-in", "server.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial", "-out", "server.pem", "-days", "2", "-extfile", "ext.cnf"]);
+    openssl(
+        dir,
+        &[
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-keyout",
+            "ca.key",
+            "-out",
+            "ca.pem",
+            "-days",
+            "2",
+            "-subj",
+            "/CN=gaitsweep test ca",
+        ],
+    );
+    openssl(
+        dir,
+        &[
+            "req",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-keyout",
+            "server.key",
+            "-out",
+            "server.csr",
+            "-subj",
+            "/CN=localhost",
+        ],
+    );
+    std::fs::write(
+        dir.join("ext.cnf"),
+        "subjectAltName=DNS:localhost,IP:127.0.0.1\nbasicConstraints=CA:FALSE\n",
+    )
+    .unwrap();
+    openssl(
+        dir,
+        &[
+            "x509",
+            "-req",
+            "-in",
+            "server.csr",
+            "-CA",
+            "ca.pem",
+            "-CAkey",
+            "ca.key",
+            "-CAcreateserial",
+            "-out",
+            "server.pem",
+            "-days",
+            "2",
+            "-extfile",
+            "ext.cnf",
+        ],
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -32,7 +94,14 @@ async fn tls_with_token() {
     let coord = Coord::start(
         tmp.path(),
         "127.0.0.1:0",
-        &["--token", "tls-token", "--tls-cert", cert.to_str().unwrap(), "--tls-key", key.to_str().unwrap()],
+        &[
+            "--token",
+            "tls-token",
+            "--tls-cert",
+            cert.to_str().unwrap(),
+            "--tls-key",
+            key.to_str().unwrap(),
+        ],
     )
     .await;
     let port = coord.addr.rsplit(':').next().unwrap().to_string();
@@ -40,27 +109,59 @@ async fn tls_with_token() {
     let ca = std::fs::read(certs.join("ca.pem")).unwrap();
     let ch = Channel::from_shared(url.clone())
         .unwrap()
-        .tls_config(ClientTlsConfig::new().ca_certificate(Certificate::from_pem(&ca)).domain_name("localhost"))
+        .tls_config(
+            ClientTlsConfig::new()
+                .ca_certificate(Certificate::from_pem(&ca))
+                .domain_name("localhost"),
+        )
         .unwrap()
         .connect()
         .await
         .expect("tls connect");
     let mut c = SweepServiceClient::new(ch);
     let mut req = tonic::Request::new(pb::ListSweepsRequest {});
-    req.metadata_mut().insert("authorization", "Bearer tls-token".parse().unwrap());
-    assert!(c.list_sweeps(req).await.unwrap().into_inner().sweeps.is_empty());
-    assert_eq!(c.list_sweeps(pb::ListSweepsRequest {}).await.unwrap_err().code(), tonic::Code::Unauthenticated);
+    req.metadata_mut()
+        .insert("authorization", "Bearer tls-token".parse().unwrap());
+    assert!(c
+        .list_sweeps(req)
+        .await
+        .unwrap()
+        .into_inner()
+        .sweeps
+        .is_empty());
+    assert_eq!(
+        c.list_sweeps(pb::ListSweepsRequest {})
+            .await
+            .unwrap_err()
+            .code(),
+        tonic::Code::Unauthenticated
+    );
 
     // plain text is refused
     let plain = Channel::from_shared(coord.url()).unwrap().connect().await;
     if let Ok(ch) = plain {
-        assert!(SweepServiceClient::new(ch).list_sweeps(pb::ListSweepsRequest {}).await.is_err());
+        assert!(SweepServiceClient::new(ch)
+            .list_sweeps(pb::ListSweepsRequest {})
+            .await
+            .is_err());
     }
 
     // the CLI speaks TLS too
     let out = Command::new(bin("coordinator"))
-        .args(["list", "--connect", &url, "--token", "tls-token", "--tls-ca", certs.join("ca.pem").to_str().unwrap()])
+        .args([
+            "list",
+            "--connect",
+            &url,
+            "--token",
+            "tls-token",
+            "--tls-ca",
+            certs.join("ca.pem").to_str().unwrap(),
+        ])
         .output()
         .unwrap();
-    assert!(out.status.success(), "coordinator list over tls: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "coordinator list over tls: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }

@@ -59,7 +59,10 @@ pub struct DaemonArgs {
 pub struct Auth(Option<MetadataValue<Ascii>>);
 
 impl tonic::service::Interceptor for Auth {
-    fn call(&mut self, mut req: tonic::Request<()>) -> std::result::Result<tonic::Request<()>, Status> {
+    fn call(
+        &mut self,
+        mut req: tonic::Request<()>,
+    ) -> std::result::Result<tonic::Request<()>, Status> {
         if let Some(t) = &self.0 {
             req.metadata_mut().insert(AUTH_HEADER, t.clone());
         }
@@ -86,13 +89,15 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
     let device = crate::cli::parse_device(&args.device)?;
     let client = connect(&args)?;
     let backoff = Backoff::new(Duration::from_secs_f64(args.max_backoff_seconds.max(0.1)));
-    let work_dir = args
-        .work_dir
-        .clone()
-        .unwrap_or_else(|| std::env::temp_dir().join(format!("gaitsweep-worker-{}", std::process::id())));
-    std::fs::create_dir_all(work_dir.join("cache")).map_err(Error::io(format!("create {}", work_dir.display())))?;
+    let work_dir = args.work_dir.clone().unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("gaitsweep-worker-{}", std::process::id()))
+    });
+    std::fs::create_dir_all(work_dir.join("cache"))
+        .map_err(Error::io(format!("create {}", work_dir.display())))?;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u32;
-    let hostname = std::fs::read_to_string("/etc/hostname").map(|s| s.trim().to_string()).unwrap_or_default();
+    let hostname = std::fs::read_to_string("/etc/hostname")
+        .map(|s| s.trim().to_string())
+        .unwrap_or_default();
     let reg = pb::RegisterRequest {
         hostname,
         cores,
@@ -106,7 +111,12 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
         async move { c.register(r).await }
     })
     .await
-    .map_err(|s| Error::Config(format!("the coordinator refused registration: {}", s.message())))?;
+    .map_err(|s| {
+        Error::Config(format!(
+            "the coordinator refused registration: {}",
+            s.message()
+        ))
+    })?;
     let ctx = Arc::new(Ctx {
         client,
         worker_id: reg.worker_id.clone(),
@@ -121,14 +131,15 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
         slots.spawn(slot_loop(ctx.clone(), slot));
     }
     tokio::select! {
-        _ = tokio::signal::ctrl_c() => tracing::info!("interrupted: leases in progress will expire and resume elsewhere"),
+        _ = gaitsweep_core::shutdown_signal() => tracing::info!("stopping: leases in progress will expire and resume elsewhere"),
         Some(r) = slots.join_next() => if let Err(e) = r { tracing::error!(error = %e, "slot task ended") },
     }
     Ok(())
 }
 
 fn connect(args: &DaemonArgs) -> Result<Client> {
-    let bad = |e: &dyn std::fmt::Display| Error::Config(format!("--connect {:?}: {e}", args.connect));
+    let bad =
+        |e: &dyn std::fmt::Display| Error::Config(format!("--connect {:?}: {e}", args.connect));
     let mut ep = Endpoint::from_shared(args.connect.clone())
         .map_err(|e| bad(&e))?
         .connect_timeout(Duration::from_secs(5))
@@ -136,16 +147,23 @@ fn connect(args: &DaemonArgs) -> Result<Client> {
     if args.connect.starts_with("https://") {
         let mut tls = ClientTlsConfig::new();
         if let Some(ca) = &args.tls_ca {
-            let pem = std::fs::read(ca).map_err(Error::io(format!("read --tls-ca {}", ca.display())))?;
+            let pem =
+                std::fs::read(ca).map_err(Error::io(format!("read --tls-ca {}", ca.display())))?;
             tls = tls.ca_certificate(Certificate::from_pem(pem));
         }
         ep = ep.tls_config(tls).map_err(|e| bad(&e))?;
     }
-    let token = match &args.token {
-        Some(t) => Some(bearer(t).parse().map_err(|_| Error::Config("--token has characters not allowed in metadata".into()))?),
-        None => None,
-    };
-    Ok(WorkerServiceClient::with_interceptor(ep.connect_lazy(), Auth(token)).max_decoding_message_size(64 << 20))
+    let token =
+        match &args.token {
+            Some(t) => Some(bearer(t).parse().map_err(|_| {
+                Error::Config("--token has characters not allowed in metadata".into())
+            })?),
+            None => None,
+        };
+    Ok(
+        WorkerServiceClient::with_interceptor(ep.connect_lazy(), Auth(token))
+            .max_decoding_message_size(64 << 20),
+    )
 }
 
 struct Ctx {
@@ -177,11 +195,24 @@ impl Backoff {
 
 /// Whether a failed call may succeed later (the coordinator is away or busy).
 fn transient(s: &Status) -> bool {
-    matches!(s.code(), Code::Unavailable | Code::DeadlineExceeded | Code::Unknown | Code::Aborted | Code::Internal | Code::Cancelled)
+    matches!(
+        s.code(),
+        Code::Unavailable
+            | Code::DeadlineExceeded
+            | Code::Unknown
+            | Code::Aborted
+            | Code::Internal
+            | Code::Cancelled
+    )
 }
 
 /// Calls `f` until it succeeds, fails permanently, or `stop` is set.
-async fn retry<T, F, Fut>(what: &str, backoff: &Backoff, stop: Option<&AtomicBool>, mut f: F) -> std::result::Result<T, Status>
+async fn retry<T, F, Fut>(
+    what: &str,
+    backoff: &Backoff,
+    stop: Option<&AtomicBool>,
+    mut f: F,
+) -> std::result::Result<T, Status>
 where
     F: FnMut() -> Fut,
     Fut: Future<Output = std::result::Result<tonic::Response<T>, Status>>,
@@ -191,7 +222,11 @@ where
         match f().await {
             Ok(r) => {
                 if attempt > 0 {
-                    tracing::info!(call = what, attempts = attempt + 1, "coordinator reachable again, delivered");
+                    tracing::info!(
+                        call = what,
+                        attempts = attempt + 1,
+                        "coordinator reachable again, delivered"
+                    );
                 }
                 return Ok(r.into_inner());
             }
@@ -210,7 +245,10 @@ where
 
 async fn slot_loop(ctx: Arc<Ctx>, slot: u32) {
     loop {
-        let req = pb::LeaseRequest { worker_id: ctx.worker_id.clone(), slot };
+        let req = pb::LeaseRequest {
+            worker_id: ctx.worker_id.clone(),
+            slot,
+        };
         let resp = retry("lease", &ctx.backoff, None, || {
             let mut c = ctx.client.clone();
             let r = req.clone();
@@ -218,13 +256,20 @@ async fn slot_loop(ctx: Arc<Ctx>, slot: u32) {
         })
         .await;
         match resp {
-            Ok(pb::LeaseResponse { lease: Some(lease), .. }) => {
+            Ok(pb::LeaseResponse {
+                lease: Some(lease), ..
+            }) => {
                 let id = lease.lease_id;
                 if let Err(e) = run_lease(&ctx, slot, lease).await {
                     tracing::error!(slot, lease = id, error = %e, "lease ended with an error");
                 }
             }
-            Ok(r) => tokio::time::sleep(Duration::from_millis(r.retry_after_ms.clamp(100, 10_000) as u64)).await,
+            Ok(r) => {
+                tokio::time::sleep(Duration::from_millis(
+                    r.retry_after_ms.clamp(100, 10_000) as u64
+                ))
+                .await
+            }
             Err(s) => {
                 tracing::error!(slot, code = ?s.code(), error = %s.message(), "cannot lease cells, retrying in 5 s");
                 tokio::time::sleep(Duration::from_secs(5)).await;
@@ -259,9 +304,15 @@ impl TrainObserver for Bridge {
 
 async fn run_lease(ctx: &Ctx, slot: u32, lease: pb::Lease) -> Result<()> {
     let id = lease.lease_id;
-    let task = lease.task.clone().ok_or_else(|| Error::Config("lease without a task".into()))?;
+    let task = lease
+        .task
+        .clone()
+        .ok_or_else(|| Error::Config("lease without a task".into()))?;
     let cell = task.cell.clone().unwrap_or_default();
-    let terrain = cell.terrain.parse().map_err(|_| Error::Config(format!("unknown terrain {:?} in lease", cell.terrain)))?;
+    let terrain = cell
+        .terrain
+        .parse()
+        .map_err(|_| Error::Config(format!("unknown terrain {:?} in lease", cell.terrain)))?;
     let dir = ctx.work_dir.join(format!("lease-{id}"));
     let stop = Arc::new(AtomicBool::new(false));
     let resume_from = match &lease.resume_from {
@@ -284,8 +335,16 @@ async fn run_lease(ctx: &Ctx, slot: u32, lease: pb::Lease) -> Result<()> {
         out_dir: dir.clone(),
         resume_from,
         ppo_overrides: task.ppo_overrides.clone(),
-        eval_robots: if task.eval_robots == 0 { 8 } else { task.eval_robots as usize },
-        eval_seconds: if task.eval_seconds == 0.0 { 10.0 } else { task.eval_seconds },
+        eval_robots: if task.eval_robots == 0 {
+            8
+        } else {
+            task.eval_robots as usize
+        },
+        eval_seconds: if task.eval_seconds == 0.0 {
+            10.0
+        } else {
+            task.eval_seconds
+        },
     };
     let (tx, mut rx) = mpsc::unbounded_channel();
     let bridge_tx = tx.clone();
@@ -293,14 +352,23 @@ async fn run_lease(ctx: &Ctx, slot: u32, lease: pb::Lease) -> Result<()> {
     std::thread::Builder::new()
         .name(format!("train-slot-{slot}"))
         .spawn(move || {
-            let mut bridge = Bridge { tx: bridge_tx, stop: thread_stop };
+            let mut bridge = Bridge {
+                tx: bridge_tx,
+                stop: thread_stop,
+            };
             let out = train_cell(&cfg, &mut bridge);
             let _ = bridge.tx.send(Event::Done(out));
         })
         .map_err(Error::io("spawn the training thread"))?;
     drop(tx);
 
-    let beat = tokio::spawn(heartbeat_loop(ctx.client.clone(), ctx.worker_id.clone(), id, ctx.heartbeat, stop.clone()));
+    let beat = tokio::spawn(heartbeat_loop(
+        ctx.client.clone(),
+        ctx.worker_id.clone(),
+        id,
+        ctx.heartbeat,
+        stop.clone(),
+    ));
     let result = deliver(ctx, id, task.epochs, &mut rx, &stop).await;
     beat.abort();
     if result.is_ok() {
@@ -310,27 +378,49 @@ async fn run_lease(ctx: &Ctx, slot: u32, lease: pb::Lease) -> Result<()> {
 }
 
 /// Renews the lease; sets `stop` when the coordinator says the lease is lost or cancelled.
-async fn heartbeat_loop(mut client: Client, worker_id: String, lease: i64, every: Duration, stop: Arc<AtomicBool>) {
+async fn heartbeat_loop(
+    mut client: Client,
+    worker_id: String,
+    lease: i64,
+    every: Duration,
+    stop: Arc<AtomicBool>,
+) {
     let mut tick = tokio::time::interval(every);
     loop {
         tick.tick().await;
-        let req = pb::HeartbeatRequest { worker_id: worker_id.clone(), lease_ids: vec![lease] };
+        let req = pb::HeartbeatRequest {
+            worker_id: worker_id.clone(),
+            lease_ids: vec![lease],
+        };
         match client.heartbeat(req).await {
             Ok(r) => {
-                let status = r.into_inner().leases.first().map(|l| l.status()).unwrap_or(pb::LeaseStatus::Lost);
+                let status = r
+                    .into_inner()
+                    .leases
+                    .first()
+                    .map(|l| l.status())
+                    .unwrap_or(pb::LeaseStatus::Lost);
                 if status != pb::LeaseStatus::Active {
                     tracing::warn!(lease, status = ?status, "coordinator withdrew the lease, stopping the cell");
                     stop.store(true, Ordering::Relaxed);
                     return;
                 }
             }
-            Err(s) => tracing::debug!(lease, code = ?s.code(), "heartbeat failed, training continues"),
+            Err(s) => {
+                tracing::debug!(lease, code = ?s.code(), "heartbeat failed, training continues")
+            }
         }
     }
 }
 
 /// Delivers the training thread's events in order until it is done.
-async fn deliver(ctx: &Ctx, lease: i64, epochs: u32, rx: &mut mpsc::UnboundedReceiver<Event>, stop: &AtomicBool) -> Result<()> {
+async fn deliver(
+    ctx: &Ctx,
+    lease: i64,
+    epochs: u32,
+    rx: &mut mpsc::UnboundedReceiver<Event>,
+    stop: &AtomicBool,
+) -> Result<()> {
     let mut uploaded: HashMap<PathBuf, (String, u64)> = HashMap::new();
     let mut closed = false; // the coordinator refused further reports for this lease
     let closed_by = |s: &Status| {
@@ -340,11 +430,23 @@ async fn deliver(ctx: &Ctx, lease: i64, epochs: u32, rx: &mut mpsc::UnboundedRec
     while let Some(ev) = rx.recv().await {
         match ev {
             Event::Epoch(m) => {
-                tracing::info!(lease, epoch = m.epoch, epochs, mean_return = m.values.get("mean_return").copied(), "epoch");
+                tracing::info!(
+                    lease,
+                    epoch = m.epoch,
+                    epochs,
+                    mean_return = m.values.get("mean_return").copied(),
+                    "epoch"
+                );
                 if closed {
                     continue;
                 }
-                let req = pb::ReportProgressRequest { lease_id: lease, epochs: vec![pb::EpochMetrics { epoch: m.epoch, values: m.values }] };
+                let req = pb::ReportProgressRequest {
+                    lease_id: lease,
+                    epochs: vec![pb::EpochMetrics {
+                        epoch: m.epoch,
+                        values: m.values,
+                    }],
+                };
                 if let Err(s) = retry("report_progress", &ctx.backoff, None, || {
                     let mut c = ctx.client.clone();
                     let r = req.clone();
@@ -368,7 +470,9 @@ async fn deliver(ctx: &Ctx, lease: i64, epochs: u32, rx: &mut mpsc::UnboundedRec
                         closed = true;
                         closed_by(&s);
                     }
-                    Err(UploadError::Local(e)) => tracing::warn!(lease, epoch, error = %e, "could not read a checkpoint, skipping it"),
+                    Err(UploadError::Local(e)) => {
+                        tracing::warn!(lease, epoch, error = %e, "could not read a checkpoint, skipping it")
+                    }
                 }
             }
             Event::Done(Ok(out)) => {
@@ -402,8 +506,15 @@ async fn deliver(ctx: &Ctx, lease: i64, epochs: u32, rx: &mut mpsc::UnboundedRec
                 })
                 .await
                 {
-                    Ok(r) => tracing::info!(lease, score = out.score.score, duplicate = r.duplicate, "cell done, result delivered"),
-                    Err(s) => tracing::warn!(lease, code = ?s.code(), error = %s.message(), "result refused"),
+                    Ok(r) => tracing::info!(
+                        lease,
+                        score = out.score.score,
+                        duplicate = r.duplicate,
+                        "cell done, result delivered"
+                    ),
+                    Err(s) => {
+                        tracing::warn!(lease, code = ?s.code(), error = %s.message(), "result refused")
+                    }
                 }
                 return Ok(());
             }
@@ -413,7 +524,10 @@ async fn deliver(ctx: &Ctx, lease: i64, epochs: u32, rx: &mut mpsc::UnboundedRec
                     return Ok(());
                 }
                 tracing::error!(lease, error = %e, "training failed");
-                let req = pb::FailCellRequest { lease_id: lease, error: e.to_string() };
+                let req = pb::FailCellRequest {
+                    lease_id: lease,
+                    error: e.to_string(),
+                };
                 let _ = retry("fail_cell", &ctx.backoff, None, || {
                     let mut c = ctx.client.clone();
                     let r = req.clone();
@@ -424,7 +538,9 @@ async fn deliver(ctx: &Ctx, lease: i64, epochs: u32, rx: &mut mpsc::UnboundedRec
             }
         }
     }
-    Err(Error::Config("the training thread ended without a result".into()))
+    Err(Error::Config(
+        "the training thread ended without a result".into(),
+    ))
 }
 
 enum UploadError {
@@ -435,11 +551,23 @@ enum UploadError {
 }
 
 /// Uploads one checkpoint file (header, then chunks) with retries; returns its sha256 and size.
-async fn upload(ctx: &Ctx, lease: i64, epoch: u32, path: &Path) -> std::result::Result<(String, u64), UploadError> {
-    let bytes = tokio::fs::read(path).await.map_err(|e| UploadError::Local(Error::io(format!("read checkpoint {}", path.display()))(e)))?;
+async fn upload(
+    ctx: &Ctx,
+    lease: i64,
+    epoch: u32,
+    path: &Path,
+) -> std::result::Result<(String, u64), UploadError> {
+    let bytes = tokio::fs::read(path).await.map_err(|e| {
+        UploadError::Local(Error::io(format!("read checkpoint {}", path.display()))(e))
+    })?;
     let sha = hex::encode(Sha256::digest(&bytes));
     let bytes = Arc::new(bytes);
-    let header = pb::UploadHeader { lease_id: lease, epoch, sha256: sha.clone(), size: bytes.len() as u64 };
+    let header = pb::UploadHeader {
+        lease_id: lease,
+        epoch,
+        sha256: sha.clone(),
+        size: bytes.len() as u64,
+    };
     retry("upload_checkpoint", &ctx.backoff, None, || {
         let mut c = ctx.client.clone();
         let msgs = upload_messages(header.clone(), bytes.clone());
@@ -452,16 +580,26 @@ async fn upload(ctx: &Ctx, lease: i64, epoch: u32, path: &Path) -> std::result::
 }
 
 /// The messages of one upload: the header, then the file in chunks.
-pub fn upload_messages(header: pb::UploadHeader, bytes: Arc<Vec<u8>>) -> Vec<pb::UploadCheckpointRequest> {
+pub fn upload_messages(
+    header: pb::UploadHeader,
+    bytes: Arc<Vec<u8>>,
+) -> Vec<pb::UploadCheckpointRequest> {
     use pb::upload_checkpoint_request::Part;
-    let mut msgs = vec![pb::UploadCheckpointRequest { part: Some(Part::Header(header)) }];
-    msgs.extend(bytes.chunks(CHUNK).map(|c| pb::UploadCheckpointRequest { part: Some(Part::Chunk(pb::CheckpointChunk { data: c.to_vec() })) }));
+    let mut msgs = vec![pb::UploadCheckpointRequest {
+        part: Some(Part::Header(header)),
+    }];
+    msgs.extend(bytes.chunks(CHUNK).map(|c| pb::UploadCheckpointRequest {
+        part: Some(Part::Chunk(pb::CheckpointChunk { data: c.to_vec() })),
+    }));
     msgs
 }
 
 /// Downloads the checkpoint a lease resumes from into the cache (verifying its sha256).
 async fn download(ctx: &Ctx, ck: &pb::CheckpointRef, stop: &AtomicBool) -> Result<PathBuf> {
-    let path = ctx.work_dir.join("cache").join(format!("{}.safetensors", ck.sha256));
+    let path = ctx
+        .work_dir
+        .join("cache")
+        .join(format!("{}.safetensors", ck.sha256));
     if path.is_file() {
         return Ok(path);
     }
@@ -469,7 +607,12 @@ async fn download(ctx: &Ctx, ck: &pb::CheckpointRef, stop: &AtomicBool) -> Resul
     loop {
         let mut c = ctx.client.clone();
         let res: std::result::Result<Vec<u8>, Status> = async {
-            let mut s = c.download_checkpoint(pb::DownloadCheckpointRequest { sha256: ck.sha256.clone() }).await?.into_inner();
+            let mut s = c
+                .download_checkpoint(pb::DownloadCheckpointRequest {
+                    sha256: ck.sha256.clone(),
+                })
+                .await?
+                .into_inner();
             let mut bytes = Vec::with_capacity(ck.size as usize);
             while let Some(chunk) = s.message().await? {
                 bytes.extend_from_slice(&chunk.data);
@@ -480,14 +623,22 @@ async fn download(ctx: &Ctx, ck: &pb::CheckpointRef, stop: &AtomicBool) -> Resul
         match res {
             Ok(bytes) if hex::encode(Sha256::digest(&bytes)) == ck.sha256 => {
                 let tmp = path.with_extension("part");
-                std::fs::write(&tmp, &bytes).map_err(Error::io(format!("write {}", tmp.display())))?;
-                std::fs::rename(&tmp, &path).map_err(Error::io(format!("move {}", path.display())))?;
+                std::fs::write(&tmp, &bytes)
+                    .map_err(Error::io(format!("write {}", tmp.display())))?;
+                std::fs::rename(&tmp, &path)
+                    .map_err(Error::io(format!("move {}", path.display())))?;
                 tracing::info!(sha256 = %ck.sha256, epoch = ck.epoch, "resume checkpoint downloaded");
                 return Ok(path);
             }
-            Ok(_) => tracing::warn!(sha256 = %ck.sha256, "downloaded checkpoint does not match its sha256, retrying"),
+            Ok(_) => {
+                tracing::warn!(sha256 = %ck.sha256, "downloaded checkpoint does not match its sha256, retrying")
+            }
             Err(s) if !transient(&s) || stop.load(Ordering::Relaxed) => {
-                return Err(Error::Config(format!("cannot download checkpoint {}: {}", ck.sha256, s.message())))
+                return Err(Error::Config(format!(
+                    "cannot download checkpoint {}: {}",
+                    ck.sha256,
+                    s.message()
+                )))
             }
             Err(_) => {}
         }

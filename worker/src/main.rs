@@ -6,7 +6,12 @@ use gaitsweep_worker::cli;
 
 /// gaitsweep worker.
 #[derive(Parser, Debug)]
-#[command(name = "worker", version, about, args_conflicts_with_subcommands = true)]
+#[command(
+    name = "worker",
+    version,
+    about,
+    args_conflicts_with_subcommands = true
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
@@ -33,6 +38,7 @@ fn main() -> anyhow::Result<()> {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     let cli = Cli::parse();
     match cli.command {
@@ -42,7 +48,9 @@ fn main() -> anyhow::Result<()> {
         Some(Command::Render(a)) => gaitsweep_worker::render::run(a)?,
         None => match cli.daemon {
             Some(d) => gaitsweep_worker::daemon::run_blocking(d)?,
-            None => anyhow::bail!("give --connect URL (daemon mode) or a subcommand (train, export, bench-train)"),
+            None => anyhow::bail!(
+                "give --connect URL (daemon mode) or a subcommand (train, export, bench-train)"
+            ),
         },
     }
     Ok(())

@@ -68,10 +68,15 @@ pub struct Rendered {
 /// Renders `a.checkpoint` to `a.out`.
 pub fn render(a: &RenderArgs) -> Result<Rendered> {
     if !(a.seconds > 0.0 && a.seconds.is_finite()) {
-        return Err(Error::Config(format!("--seconds must be > 0, got {}", a.seconds)));
+        return Err(Error::Config(format!(
+            "--seconds must be > 0, got {}",
+            a.seconds
+        )));
     }
     if let Some(d) = a.difficulty.filter(|d| *d > 9) {
-        return Err(Error::Config(format!("--difficulty must be 0..=9, got {d}")));
+        return Err(Error::Config(format!(
+            "--difficulty must be 0..=9, got {d}"
+        )));
     }
     let ckpt = Checkpoint::load(&a.checkpoint)?;
     let meta = ckpt.meta.clone();
@@ -89,7 +94,10 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
         Some(t) => t,
         None => meta.terrain.parse::<TerrainKind>()?,
     };
-    let difficulty = a.difficulty.or(meta.difficulty).unwrap_or(CURRICULUM_EVAL_DIFFICULTY);
+    let difficulty = a
+        .difficulty
+        .or(meta.difficulty)
+        .unwrap_or(CURRICULUM_EVAL_DIFFICULTY);
     let dt = preset.policy_dt();
     let mut env = VecEnv::new(
         &preset,
@@ -109,14 +117,27 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
             &a.checkpoint,
             format!(
                 "policy has obs/act dims {}/{} but the {} preset now has {}/{}",
-                meta.obs_dim, meta.act_dim, meta.robot, env.obs_dim(), env.act_dim()
+                meta.obs_dim,
+                meta.act_dim,
+                meta.robot,
+                env.obs_dim(),
+                env.act_dim()
             ),
         ));
     }
-    let mut ppo = Ppo::new(meta.obs_dim, meta.act_dim, meta.ppo.clone(), tch::Device::Cpu, 0);
+    let mut ppo = Ppo::new(
+        meta.obs_dim,
+        meta.act_dim,
+        meta.ppo.clone(),
+        tch::Device::Cpu,
+        0,
+    );
     ckpt.restore(&mut ppo)?;
 
-    let every = a.every.unwrap_or_else(|| ((0.04 / dt).round() as u32).max(1)).max(1);
+    let every = a
+        .every
+        .unwrap_or_else(|| ((0.04 / dt).round() as u32).max(1))
+        .max(1);
     let fps = (1.0 / (every as f32 * dt)).round().clamp(1.0, 100.0) as u16;
     let steps = (a.seconds / dt).round().max(1.0) as usize;
     let start = env.base_pose(0).0;
@@ -128,14 +149,14 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
     for step in 1..=steps {
         ppo.act_deterministic(&obs, &mut actions)?;
         let r = env.step(&actions)?;
-        let done = r.dones[0];
+        let (done, timeout) = (r.dones[0], r.timeouts[0]);
         obs.copy_from_slice(r.obs);
         walked = step;
         if step % every as usize == 0 || done {
             frames.push(env.render_frame(0));
         }
         if done {
-            fell = !r.timeouts[0];
+            fell = !timeout;
             break;
         }
     }

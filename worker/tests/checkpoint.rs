@@ -230,8 +230,11 @@ fn torchscript_export_matches_live_actor() {
     assert_eq!(desc["activation"], "elu");
 
     // Python's torch.jit.load must load it too (the venv that scripts/setup.sh installs).
-    let python = std::env::var_os("HOME")
-        .map(|h| Path::new(&h).join(".cache/gaitsweep/venv/bin/python"))
+    let cache = std::env::var_os("GAITSWEEP_CACHE")
+        .map(std::path::PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/gaitsweep")));
+    let python = cache
+        .map(|c| c.join("venv/bin/python"))
         .filter(|p| p.exists())
         .expect("the torch venv of scripts/setup.sh is missing");
     let script = "import sys, torch; m = torch.jit.load(sys.argv[1]); \

@@ -7,27 +7,41 @@ use std::fmt::Write;
 use std::path::PathBuf;
 
 fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }
 
 fn num(v: f64) -> String {
-    if v.is_finite() { format!("{v:.4}") } else { "NaN".into() }
+    if v.is_finite() {
+        format!("{v:.4}")
+    } else {
+        "NaN".into()
+    }
 }
 
 /// The page.
 pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
-    let have = |name: &str| files.iter().any(|f| f.file_name().is_some_and(|n| n == name));
-    let fig = |o: &mut String, stem: &str, alt: &str| {
+    let have = |name: &str| {
+        files
+            .iter()
+            .any(|f| f.file_name().is_some_and(|n| n == name))
+    };
+    let fig = |o: &mut String, stem: &str, alt: &str, class: &str| {
         if have(&format!("{stem}.png")) {
             let _ = write!(
                 o,
-                "<figure><a href=\"{stem}.svg\"><img src=\"{stem}.png\" alt=\"{alt}\"></a><figcaption>{alt} (<a href=\"{stem}.svg\">SVG</a>)</figcaption></figure>\n",
+                "<figure class=\"{class}\"><a href=\"{stem}.svg\"><img src=\"{stem}.png\" alt=\"{alt}\"></a><figcaption>{alt} (<a href=\"{stem}.svg\">SVG</a>)</figcaption></figure>\n",
                 alt = esc(alt)
             );
         }
     };
     let mut o = String::new();
-    let title = format!("gaitsweep report: sweep {} \u{201c}{}\u{201d}", d.sweep_id, d.name);
+    let title = format!(
+        "gaitsweep report: sweep {} \u{201c}{}\u{201d}",
+        d.sweep_id, d.name
+    );
     let _ = write!(
         o,
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title>\n<style>\n\
@@ -88,8 +102,20 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
                     .iter()
                     .enumerate()
                     .filter_map(|(t, name)| {
-                        let p = d.promotions.iter().find(|p| &p.terrain == name).and_then(|p| d.cell(p.cell_id)).or_else(|| d.best_cell(Some(t)))?;
-                        Some(format!("{}: cell {} (w1 {}, w2 {}, score {})", esc(name), p.id, fmt_w(p.w1), fmt_w(p.w2), num(p.value().unwrap_or(f64::NAN))))
+                        let p = d
+                            .promotions
+                            .iter()
+                            .find(|p| &p.terrain == name)
+                            .and_then(|p| d.cell(p.cell_id))
+                            .or_else(|| d.best_cell(Some(t)))?;
+                        Some(format!(
+                            "{}: cell {} (w1 {}, w2 {}, score {})",
+                            esc(name),
+                            p.id,
+                            fmt_w(p.w1),
+                            fmt_w(p.w2),
+                            num(p.value().unwrap_or(f64::NAN))
+                        ))
                     })
                     .collect();
                 o.push_str(&per.join("; "));
@@ -112,34 +138,66 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         }
     }
 
-    for (t, terrain) in d.terrains.iter().enumerate() {
+    for terrain in &d.terrains {
         let s = slug(terrain);
         let _ = writeln!(o, "<h2>Terrain: {}</h2>", esc(terrain));
-        fig(&mut o, &format!("score_{s}"), &format!("gait score over (w1, w2) on {terrain}"));
-        fig(&mut o, &format!("surface_{s}"), &format!("gait score surface on {terrain}"));
+        fig(
+            &mut o,
+            &format!("score_{s}"),
+            &format!("gait score over (w1, w2) on {terrain}"),
+            "",
+        );
+        fig(
+            &mut o,
+            &format!("surface_{s}"),
+            &format!("gait score surface on {terrain}"),
+            "",
+        );
         o.push_str("<h3>Score components</h3>\n");
         for (name, label, _) in COMPONENTS {
-            fig(&mut o, &format!("{name}_{s}"), &format!("{name} on {terrain}: {label}"));
+            fig(
+                &mut o,
+                &format!("{name}_{s}"),
+                &format!("{name} on {terrain}: {label}"),
+                "",
+            );
         }
         o.push_str("<h3>Learning curves</h3>\n");
-        let _ = write!(o, "<div class=\"wide\">");
-        fig(&mut o, &format!("curves_{s}"), &format!("learning curves of every cell on {terrain} (promoted cell drawn thick)"));
-        o.push_str("</div>\n");
-        let _ = t;
+        fig(
+            &mut o,
+            &format!("curves_{s}"),
+            &format!("learning curves of every cell on {terrain} (promoted cell drawn thick)"),
+            "wide",
+        );
     }
     if d.terrains.len() > 1 {
         o.push_str("<h2>Overlap across terrains</h2>\n");
         let (cells, _) = d.overlap();
         let list: Vec<String> = cells
             .iter()
-            .map(|&(i, j)| format!("(w1 {}, w2 {})", fmt_w(d.w1_values[i]), fmt_w(d.w2_values[j])))
+            .map(|&(i, j)| {
+                format!(
+                    "(w1 {}, w2 {})",
+                    fmt_w(d.w1_values[i]),
+                    fmt_w(d.w2_values[j])
+                )
+            })
             .collect();
         let _ = writeln!(
             o,
             "<p>Cells in the top quartile of scores on every terrain at once: {}.</p>",
-            if list.is_empty() { "none".to_string() } else { list.join(", ") }
+            if list.is_empty() {
+                "none".to_string()
+            } else {
+                list.join(", ")
+            }
         );
-        fig(&mut o, "overlap", "cells in the top quartile on every terrain (boxed)");
+        fig(
+            &mut o,
+            "overlap",
+            "cells in the top quartile on every terrain (boxed)",
+            "",
+        );
     }
 
     o.push_str("<h2>Cells</h2>\n<table>\n<tr><th>cell</th><th>terrain</th><th>w1</th><th>w2</th><th>state</th><th>epochs</th><th>attempts</th>\
@@ -147,7 +205,11 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
                 <th>mean |\u{3c4}|</th><th>cost of transport</th><th>error</th></tr>\n");
     let best_id = promoted.map(|c| c.id);
     for c in &d.cells {
-        let class = if Some(c.id) == best_id { " class=\"best\"" } else { "" };
+        let class = if Some(c.id) == best_id {
+            " class=\"best\""
+        } else {
+            ""
+        };
         let _ = write!(
             o,
             "<tr{class}><td>{}{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",
@@ -162,13 +224,27 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         );
         match &c.score {
             Some(s) => {
-                for v in [s.score, s.track, s.effort, s.tilt, s.progress, s.fall_rate, s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport] {
+                for v in [
+                    s.score,
+                    s.track,
+                    s.effort,
+                    s.tilt,
+                    s.progress,
+                    s.fall_rate,
+                    s.mean_vel_error,
+                    s.mean_abs_torque,
+                    s.cost_of_transport,
+                ] {
                     let _ = write!(o, "<td>{}</td>", num(v));
                 }
             }
             None => o.push_str(&"<td></td>".repeat(9)),
         }
-        let _ = writeln!(o, "<td>{}</td></tr>", esc(c.last_error.as_deref().unwrap_or("")));
+        let _ = writeln!(
+            o,
+            "<td>{}</td></tr>",
+            esc(c.last_error.as_deref().unwrap_or(""))
+        );
     }
     o.push_str("</table>\n<p>Every value comes from the coordinator's SQLite database (tables cells, scores, epoch_metrics, promotions).</p>\n</body></html>\n");
     o

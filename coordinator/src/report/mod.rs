@@ -69,7 +69,10 @@ pub struct ReportCell {
 impl ReportCell {
     /// The composite score, if the cell has a finite one.
     pub fn value(&self) -> Option<f64> {
-        self.score.as_ref().map(|s| s.score).filter(|v| v.is_finite())
+        self.score
+            .as_ref()
+            .map(|s| s.score)
+            .filter(|v| v.is_finite())
     }
 }
 
@@ -168,7 +171,10 @@ impl ReportData {
             let threshold = v[v.len().div_ceil(4) - 1];
             for c in self.cells_of(t) {
                 if c.value().is_some_and(|x| x >= threshold) {
-                    if let Some(Some(n)) = count.get_mut(c.w1_index).and_then(|r| r.get_mut(c.w2_index)) {
+                    if let Some(Some(n)) = count
+                        .get_mut(c.w1_index)
+                        .and_then(|r| r.get_mut(c.w2_index))
+                    {
                         *n += 1.0;
                     }
                 }
@@ -191,7 +197,10 @@ impl ReportData {
 pub async fn open_db(data_dir: &Path) -> anyhow::Result<sqlx::SqlitePool> {
     let path = data_dir.join(DB_FILE);
     if !path.is_file() {
-        anyhow::bail!("no database at {}: is --data-dir the coordinator's data dir?", path.display());
+        anyhow::bail!(
+            "no database at {}: is --data-dir the coordinator's data dir?",
+            path.display()
+        );
     }
     let opts = SqliteConnectOptions::new()
         .filename(&path)
@@ -211,20 +220,31 @@ pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportDat
         .fetch_optional(db)
         .await?
         .with_context(|| format!("no sweep {sweep} in this database"))?;
-    let spec: serde_json::Value = serde_json::from_str(row.try_get("spec_json")?).unwrap_or_default();
+    let spec: serde_json::Value =
+        serde_json::from_str(row.try_get("spec_json")?).unwrap_or_default();
     let floats = |k: &str| -> Vec<f64> {
-        spec.get(k).and_then(|v| v.as_array()).map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default()
+        spec.get(k)
+            .and_then(|v| v.as_array())
+            .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
+            .unwrap_or_default()
     };
     let mut data = ReportData {
         sweep_id: row.try_get("id")?,
         name: row.try_get("name")?,
         robot: row.try_get("robot")?,
         state: row.try_get("state")?,
-        difficulty: spec.get("difficulty").and_then(|d| d.as_u64()).map(|d| d as u8),
+        difficulty: spec
+            .get("difficulty")
+            .and_then(|d| d.as_u64())
+            .map(|d| d as u8),
         terrains: spec
             .get("terrains")
             .and_then(|v| v.as_array())
-            .map(|a| a.iter().filter_map(|x| x.as_str().map(String::from)).collect())
+            .map(|a| {
+                a.iter()
+                    .filter_map(|x| x.as_str().map(String::from))
+                    .collect()
+            })
             .unwrap_or_default(),
         w1_values: floats("w1_values"),
         w2_values: floats("w2_values"),
@@ -302,12 +322,17 @@ pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportDat
     }
 
     let mut latest: BTreeMap<String, Promotion> = BTreeMap::new();
-    for r in sqlx::query("SELECT terrain, cell_id, score FROM promotions WHERE sweep_id = ? ORDER BY id")
-        .bind(sweep)
-        .fetch_all(db)
-        .await?
+    for r in
+        sqlx::query("SELECT terrain, cell_id, score FROM promotions WHERE sweep_id = ? ORDER BY id")
+            .bind(sweep)
+            .fetch_all(db)
+            .await?
     {
-        let p = Promotion { terrain: r.try_get("terrain")?, cell_id: r.try_get("cell_id")?, score: r.try_get("score")? };
+        let p = Promotion {
+            terrain: r.try_get("terrain")?,
+            cell_id: r.try_get("cell_id")?,
+            score: r.try_get("score")?,
+        };
         latest.insert(p.terrain.clone(), p);
     }
     data.promotions = latest.into_values().collect();
@@ -317,7 +342,12 @@ pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportDat
 
 /// Fills terrains and grid values the spec did not give from the cells themselves.
 fn fill_axes(d: &mut ReportData) {
-    let n_t = d.cells.iter().map(|c| c.terrain_index + 1).max().unwrap_or(0);
+    let n_t = d
+        .cells
+        .iter()
+        .map(|c| c.terrain_index + 1)
+        .max()
+        .unwrap_or(0);
     if d.terrains.len() < n_t {
         d.terrains.resize(n_t, String::new());
     }
@@ -364,15 +394,29 @@ pub fn write_report(data: &ReportData, out: &Path, gif: &GifStatus) -> anyhow::R
     std::fs::create_dir_all(out).with_context(|| format!("create {}", out.display()))?;
     let mut files = plots::draw_all(data, out)?;
     let index = out.join("index.html");
-    std::fs::write(&index, html::index(data, &files, gif)).with_context(|| format!("write {}", index.display()))?;
+    std::fs::write(&index, html::index(data, &files, gif))
+        .with_context(|| format!("write {}", index.display()))?;
     files.push(index);
     Ok(ReportFiles { files })
 }
 
 /// Safe file-name part for a terrain.
 pub fn slug(s: &str) -> String {
-    let s: String = s.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '_' }).collect();
-    if s.is_empty() { "terrain".into() } else { s }
+    let s: String = s
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if s.is_empty() {
+        "terrain".into()
+    } else {
+        s
+    }
 }
 
 /// `coordinator report`.
@@ -409,7 +453,9 @@ pub async fn run(a: ReportArgs) -> anyhow::Result<()> {
         render_gif(&data, &a).await
     };
     match &gif {
-        GifStatus::Written(f) => tracing::info!(file = %a.out.join(f).display(), "gait GIF written"),
+        GifStatus::Written(f) => {
+            tracing::info!(file = %a.out.join(f).display(), "gait GIF written")
+        }
         GifStatus::NotMade(why) => tracing::warn!("no gait GIF: {why}"),
     }
     let files = write_report(&data, &a.out, &gif)?;
@@ -429,27 +475,44 @@ pub async fn run(a: ReportArgs) -> anyhow::Result<()> {
 /// The `worker` binary next to this executable.
 pub fn sibling_worker() -> Option<PathBuf> {
     let exe = std::env::current_exe().ok()?;
-    let p = exe.parent()?.join(if cfg!(windows) { "worker.exe" } else { "worker" });
+    let p = exe.parent()?.join(if cfg!(windows) {
+        "worker.exe"
+    } else {
+        "worker"
+    });
     p.is_file().then_some(p)
 }
 
 /// Renders the promoted cell's checkpoint with `worker render`; never fails the report.
 async fn render_gif(data: &ReportData, a: &ReportArgs) -> GifStatus {
     let Some(best) = data.promoted() else {
-        return GifStatus::NotMade("no cell has a score yet, so there is no promoted policy to render".into());
+        return GifStatus::NotMade(
+            "no cell has a score yet, so there is no promoted policy to render".into(),
+        );
     };
     let Some(rel) = &best.checkpoint else {
-        return GifStatus::NotMade(format!("the promoted cell {} has no checkpoint in the database", best.id));
+        return GifStatus::NotMade(format!(
+            "the promoted cell {} has no checkpoint in the database",
+            best.id
+        ));
     };
     let ckpt = a.data_dir.join(rel);
     if !ckpt.is_file() {
-        return GifStatus::NotMade(format!("the promoted cell's checkpoint {} is missing", ckpt.display()));
+        return GifStatus::NotMade(format!(
+            "the promoted cell's checkpoint {} is missing",
+            ckpt.display()
+        ));
     }
     let worker = match a.worker.clone().or_else(sibling_worker) {
         Some(w) if w.is_file() => w,
-        Some(w) => return GifStatus::NotMade(format!("the worker binary {} does not exist", w.display())),
+        Some(w) => {
+            return GifStatus::NotMade(format!("the worker binary {} does not exist", w.display()))
+        }
         None => {
-            let dir = std::env::current_exe().ok().and_then(|e| e.parent().map(Path::to_path_buf)).unwrap_or_default();
+            let dir = std::env::current_exe()
+                .ok()
+                .and_then(|e| e.parent().map(Path::to_path_buf))
+                .unwrap_or_default();
             return GifStatus::NotMade(format!(
                 "the worker binary was not found next to the coordinator (in {}); build it or pass --worker PATH, then run `worker render --checkpoint {} --out gait.gif`",
                 dir.display(),
@@ -473,11 +536,23 @@ async fn render_gif(data: &ReportData, a: &ReportArgs) -> GifStatus {
     }
     tracing::info!(worker = %worker.display(), checkpoint = %ckpt.display(), cell = best.id, "rendering the promoted policy's gait");
     match cmd.kill_on_drop(true).output().await {
-        Ok(o) if o.status.success() && a.out.join(name).is_file() => GifStatus::Written(name.into()),
+        Ok(o) if o.status.success() && a.out.join(name).is_file() => {
+            GifStatus::Written(name.into())
+        }
         Ok(o) => {
             let err = String::from_utf8_lossy(&o.stderr);
-            let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim().to_string();
-            GifStatus::NotMade(format!("`{} render` failed ({}): {last}", worker.display(), o.status))
+            let last = err
+                .lines()
+                .rev()
+                .find(|l| !l.trim().is_empty())
+                .unwrap_or("")
+                .trim()
+                .to_string();
+            GifStatus::NotMade(format!(
+                "`{} render` failed ({}): {last}",
+                worker.display(),
+                o.status
+            ))
         }
         Err(e) => GifStatus::NotMade(format!("could not run {}: {e}", worker.display())),
     }

@@ -41,8 +41,14 @@ fn synthetic() -> ReportData {
                     _ => ("done", Some(score(v))),
                 };
                 let curves = BTreeMap::from([
-                    ("mean_step_reward".to_string(), (1..=20).map(|e| (e, v + 0.01 * e as f64)).collect()),
-                    ("mean_return".to_string(), (1..=20).map(|e| (e, 10.0 * v + 0.3 * e as f64)).collect()),
+                    (
+                        "mean_step_reward".to_string(),
+                        (1..=20).map(|e| (e, v + 0.01 * e as f64)).collect(),
+                    ),
+                    (
+                        "mean_return".to_string(),
+                        (1..=20).map(|e| (e, 10.0 * v + 0.3 * e as f64)).collect(),
+                    ),
                 ]);
                 cells.push(ReportCell {
                     id,
@@ -81,18 +87,38 @@ fn synthetic() -> ReportData {
 /// Checks a PNG's signature, its IHDR size and that it ends with IEND.
 fn assert_png(path: &Path, min_w: u32, min_h: u32) {
     let b = std::fs::read(path).unwrap_or_else(|e| panic!("read {}: {e}", path.display()));
-    assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n", "{} is not a PNG", path.display());
+    assert_eq!(
+        &b[..8],
+        b"\x89PNG\r\n\x1a\n",
+        "{} is not a PNG",
+        path.display()
+    );
     assert_eq!(&b[12..16], b"IHDR");
     let w = u32::from_be_bytes(b[16..20].try_into().unwrap());
     let h = u32::from_be_bytes(b[20..24].try_into().unwrap());
     assert!(w >= min_w && h >= min_h, "{}: {w}x{h}", path.display());
-    assert_eq!(&b[b.len() - 8..b.len() - 4], b"IEND", "{} is truncated", path.display());
-    assert!(b.len() > 5000, "{} is suspiciously small ({} bytes)", path.display(), b.len());
+    assert_eq!(
+        &b[b.len() - 8..b.len() - 4],
+        b"IEND",
+        "{} is truncated",
+        path.display()
+    );
+    assert!(
+        b.len() > 5000,
+        "{} is suspiciously small ({} bytes)",
+        path.display(),
+        b.len()
+    );
 }
 
 fn assert_svg(path: &Path, must_contain: &[&str]) {
-    let s = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("read {}: {e}", path.display()));
-    assert!(s.starts_with("<svg") && s.trim_end().ends_with("</svg>"), "{} is not a whole SVG", path.display());
+    let s =
+        std::fs::read_to_string(path).unwrap_or_else(|e| panic!("read {}: {e}", path.display()));
+    assert!(
+        s.starts_with("<svg") && s.trim_end().ends_with("</svg>"),
+        "{} is not a whole SVG",
+        path.display()
+    );
     for m in must_contain {
         assert!(s.contains(m), "{} lacks {m:?}", path.display());
     }
@@ -102,15 +128,29 @@ fn assert_svg(path: &Path, must_contain: &[&str]) {
 fn best_and_overlap_follow_the_scores() {
     let d = synthetic();
     let best = d.best_cell(None).unwrap();
-    assert_eq!((best.terrain_index, best.w1_index), (1, 2), "the highest score is on rough, w1 = 12");
-    assert_eq!(d.promoted().unwrap().id, best.id, "without promotions the best cell is promoted");
+    assert_eq!(
+        (best.terrain_index, best.w1_index),
+        (1, 2),
+        "the highest score is on rough, w1 = 12"
+    );
+    assert_eq!(
+        d.promoted().unwrap().id,
+        best.id,
+        "without promotions the best cell is promoted"
+    );
     let (cells, count) = d.overlap();
     assert!(!cells.is_empty());
     for &(i, j) in &cells {
         assert_eq!(count[i][j], Some(2.0));
         for t in 0..2 {
-            let c = d.cells_of(t).find(|c| c.w1_index == i && c.w2_index == j).unwrap();
-            assert!(c.value().is_some(), "overlap cells are scored on every terrain");
+            let c = d
+                .cells_of(t)
+                .find(|c| c.w1_index == i && c.w2_index == j)
+                .unwrap();
+            assert!(
+                c.value().is_some(),
+                "overlap cells are scored on every terrain"
+            );
         }
     }
     // the cell failed on rough is never in the overlap
@@ -129,7 +169,9 @@ fn every_picture_is_a_whole_png_and_svg() {
     }
     let mut stems = vec!["overlap".to_string()];
     for t in ["flat", "rough"] {
-        for p in ["score", "surface", "track", "effort", "tilt", "progress", "curves"] {
+        for p in [
+            "score", "surface", "track", "effort", "tilt", "progress", "curves",
+        ] {
             stems.push(format!("{p}_{t}"));
         }
     }
@@ -140,15 +182,41 @@ fn every_picture_is_a_whole_png_and_svg() {
         let svg = dir.path().join(format!("{s}.svg"));
         assert!(files.contains(&svg), "{s}.svg listed");
     }
-    assert_svg(&dir.path().join("score_flat.svg"), &["log10 torque weight w2", "w1 (tracking weight)", "gait score", "best"]);
+    assert_svg(
+        &dir.path().join("score_flat.svg"),
+        &[
+            "log10 torque weight w2",
+            "w1 (tracking weight)",
+            "gait score",
+            "best",
+        ],
+    );
     assert_svg(&dir.path().join("effort_rough.svg"), &["best (lowest)"]);
-    assert_svg(&dir.path().join("overlap.svg"), &["all terrains", "top quartile"]);
-    assert_svg(&dir.path().join("curves_flat.svg"), &["epoch", "mean reward per step", "w1 12, w2 -2"]);
+    assert_svg(
+        &dir.path().join("overlap.svg"),
+        &["all terrains", "top quartile"],
+    );
+    assert_svg(
+        &dir.path().join("curves_flat.svg"),
+        &["epoch", "mean reward per step", "w1 12, w2 -2"],
+    );
     let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
-    for needle in ["score_flat.png", "surface_rough.png", "overlap.png", "curves_rough.png", "the worker binary was not found", "worker &lt;gone&gt;", "class=\"best\""] {
+    for needle in [
+        "score_flat.png",
+        "surface_rough.png",
+        "overlap.png",
+        "curves_rough.png",
+        "the worker binary was not found",
+        "worker &lt;gone&gt;",
+        "class=\"best\"",
+    ] {
         assert!(html.contains(needle), "index.html lacks {needle:?}");
     }
-    assert_eq!(html.matches("<tr").count(), d.cells.len() + 1, "one table row per cell");
+    assert_eq!(
+        html.matches("<tr").count(),
+        d.cells.len() + 1,
+        "one table row per cell"
+    );
 }
 
 #[test]
@@ -162,14 +230,22 @@ fn pictures_render_text_with_the_embedded_font() {
         let path = dir.path().join(name);
         let root = BitMapBackend::new(&path, (300, 60)).into_drawing_area();
         root.fill(&WHITE).unwrap();
-        root.draw(&Text::new(text.to_string(), (5, 10), ("sans-serif", 30).into_font())).unwrap();
+        root.draw(&Text::new(
+            text.to_string(),
+            (5, 10),
+            ("sans-serif", 30).into_font(),
+        ))
+        .unwrap();
         root.present().unwrap();
         drop(root);
         std::fs::metadata(&path).unwrap().len()
     };
     let blank = draw("blank.png", "");
     let text = draw("text.png", "w1 log10 \u{2605} 0.123");
-    assert!(text > blank + 800, "text was drawn: {text} bytes vs {blank} blank");
+    assert!(
+        text > blank + 800,
+        "text was drawn: {text} bytes vs {blank} blank"
+    );
 }
 
 #[test]
@@ -181,7 +257,12 @@ fn an_empty_sweep_still_gets_a_report() {
         c.curves.clear();
     }
     let dir = tempfile::tempdir().unwrap();
-    write_report(&d, dir.path(), &GifStatus::NotMade("no cell has a score yet".into())).unwrap();
+    write_report(
+        &d,
+        dir.path(),
+        &GifStatus::NotMade("no cell has a score yet".into()),
+    )
+    .unwrap();
     assert_png(&dir.path().join("score_flat.png"), 700, 500);
     let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
     assert!(html.contains("nothing is promoted"));
@@ -210,7 +291,13 @@ async fn a_sweep_stored_by_the_coordinator_is_reported() {
     let dir = tempfile::tempdir().unwrap();
     let store = SqliteStore::open(&dir.path().join(DB_FILE)).await.unwrap();
     let w = WorkerId("w".into());
-    let info = WorkerInfo { hostname: "h".into(), cores: 2, device: "cpu".into(), slots: 1, version: "t".into() };
+    let info = WorkerInfo {
+        hostname: "h".into(),
+        cores: 2,
+        device: "cpu".into(),
+        slots: 1,
+        version: "t".into(),
+    };
     store.register_worker(&w, &info, 0).await.unwrap();
     let sweep = store.create_sweep(&spec(), 0).await.unwrap();
     let mut k = 0.0;
@@ -220,14 +307,33 @@ async fn a_sweep_stored_by_the_coordinator_is_reported() {
         if k > 11.0 {
             break;
         }
-        let ck = CheckpointRecord { sha256: format!("{:064x}", g.lease.0), size: 10, epoch: 3 };
+        let ck = CheckpointRecord {
+            sha256: format!("{:064x}", g.lease.0),
+            size: 10,
+            epoch: 3,
+        };
         let rel = format!("checkpoints/{}.safetensors", ck.sha256);
-        store.record_checkpoint(g.lease, &ck, &rel, 2).await.unwrap();
+        store
+            .record_checkpoint(g.lease, &ck, &rel, 2)
+            .await
+            .unwrap();
         let epochs: Vec<(u32, BTreeMap<String, f64>)> = (1..=3)
-            .map(|e| (e, BTreeMap::from([("mean_step_reward".to_string(), k * 0.01 + e as f64 * 0.1), ("mean_return".to_string(), k + e as f64), ("kl".to_string(), 0.01)])))
+            .map(|e| {
+                (
+                    e,
+                    BTreeMap::from([
+                        ("mean_step_reward".to_string(), k * 0.01 + e as f64 * 0.1),
+                        ("mean_return".to_string(), k + e as f64),
+                        ("kl".to_string(), 0.01),
+                    ]),
+                )
+            })
             .collect();
         store.record_progress(g.lease, &epochs).await.unwrap();
-        store.report_result(g.lease, &score(k / 10.0), 3, Some(&ck.sha256), 3).await.unwrap();
+        store
+            .report_result(g.lease, &score(k / 10.0), 3, Some(&ck.sha256), 3)
+            .await
+            .unwrap();
     }
     let db = open_db(dir.path()).await.unwrap();
     let d = load(&db, sweep.id.0).await.unwrap();
@@ -238,12 +344,26 @@ async fn a_sweep_stored_by_the_coordinator_is_reported() {
     assert_eq!(d.cells.len(), 12);
     assert_eq!(d.cells.iter().filter(|c| c.score.is_some()).count(), 11);
     let best = d.promoted().expect("a promoted cell");
-    assert_eq!(best.value(), Some(1.1), "the stored promotion is the best score");
-    assert!(d.promotions.iter().any(|p| p.terrain.is_empty() && p.cell_id == best.id));
-    assert!(best.checkpoint.as_deref().unwrap().starts_with("checkpoints/"));
+    assert_eq!(
+        best.value(),
+        Some(1.1),
+        "the stored promotion is the best score"
+    );
+    assert!(d
+        .promotions
+        .iter()
+        .any(|p| p.terrain.is_empty() && p.cell_id == best.id));
+    assert!(best
+        .checkpoint
+        .as_deref()
+        .unwrap()
+        .starts_with("checkpoints/"));
     let c = d.cells.iter().find(|c| c.score.is_some()).unwrap();
     assert_eq!(c.curves["mean_step_reward"].len(), 3);
-    assert!(!c.curves.contains_key("kl"), "only curve metrics are loaded");
+    assert!(
+        !c.curves.contains_key("kl"),
+        "only curve metrics are loaded"
+    );
     assert!(d.load_missing_sweep_is_an_error(&db).await);
 
     // the whole command, with no worker binary: the report says so instead of failing
@@ -268,4 +388,23 @@ impl ReportData {
     async fn load_missing_sweep_is_an_error(&self, db: &sqlx::SqlitePool) -> bool {
         load(db, self.sweep_id + 1000).await.is_err()
     }
+}
+
+#[test]
+fn a_one_cell_grid_is_drawn() {
+    let mut d = synthetic();
+    d.terrains.truncate(1);
+    d.w1_values.truncate(1);
+    d.w2_values.truncate(1);
+    d.cells
+        .retain(|c| c.terrain_index == 0 && c.w1_index == 0 && c.w2_index == 0);
+    let dir = tempfile::tempdir().unwrap();
+    write_report(&d, dir.path(), &GifStatus::NotMade("x".into())).unwrap();
+    for s in ["score_flat", "surface_flat", "curves_flat", "tilt_flat"] {
+        assert_png(&dir.path().join(format!("{s}.png")), 500, 400);
+    }
+    assert!(
+        !dir.path().join("overlap.png").exists(),
+        "no overlap with one terrain"
+    );
 }

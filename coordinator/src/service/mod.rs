@@ -42,7 +42,9 @@ pub struct Coordinator<S> {
 
 /// Current unix time in milliseconds.
 pub fn now_ms() -> i64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_millis() as i64)
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as i64)
 }
 
 impl<S: Store> Coordinator<S> {
@@ -53,27 +55,49 @@ impl<S: Store> Coordinator<S> {
         let now = now_ms();
         let running = store.running_leases().await?;
         for l in &running {
-            leases.insert(l.lease, l.cell, l.sweep, l.worker.clone(), now + limits.lease_ms);
+            leases.insert(
+                l.lease,
+                l.cell,
+                l.sweep,
+                l.worker.clone(),
+                now + limits.lease_ms,
+            );
         }
         if !running.is_empty() {
             tracing::info!(leases = running.len(), "restored running leases");
         }
         let (events, _) = broadcast::channel(4096);
-        Ok(Arc::new(Self { store, leases, blobs, events, limits }))
+        Ok(Arc::new(Self {
+            store,
+            leases,
+            blobs,
+            events,
+            limits,
+        }))
     }
 
     /// Publishes an event to watchers (dropped if nobody listens).
     pub fn emit(&self, sweep_id: i64, kind: pb::sweep_event::Kind) {
-        let _ = self.events.send(pb::SweepEvent { sweep_id, unix_ms: now_ms(), kind: Some(kind) });
+        let _ = self.events.send(pb::SweepEvent {
+            sweep_id,
+            unix_ms: now_ms(),
+            kind: Some(kind),
+        });
     }
 
     /// Streams a stored checkpoint in chunks.
-    pub async fn download(&self, sha256: &str) -> Result<ReceiverStream<Result<pb::CheckpointChunk, tonic::Status>>> {
+    pub async fn download(
+        &self,
+        sha256: &str,
+    ) -> Result<ReceiverStream<Result<pb::CheckpointChunk, tonic::Status>>> {
         let (_, rel) = self.store.checkpoint_path(sha256).await?;
         let path = self.blobs.absolute(&rel);
         let mut file = tokio::fs::File::open(&path)
             .await
-            .map_err(crate::error::io(format!("open checkpoint {}", path.display())))?;
+            .map_err(crate::error::io(format!(
+                "open checkpoint {}",
+                path.display()
+            )))?;
         let (tx, rx) = mpsc::channel(4);
         tokio::spawn(async move {
             use tokio::io::AsyncReadExt;
@@ -82,12 +106,22 @@ impl<S: Store> Coordinator<S> {
                 match file.read(&mut buf).await {
                     Ok(0) => break,
                     Ok(n) => {
-                        if tx.send(Ok(pb::CheckpointChunk { data: buf[..n].to_vec() })).await.is_err() {
+                        if tx
+                            .send(Ok(pb::CheckpointChunk {
+                                data: buf[..n].to_vec(),
+                            }))
+                            .await
+                            .is_err()
+                        {
                             break;
                         }
                     }
                     Err(e) => {
-                        let _ = tx.send(Err(tonic::Status::internal(format!("read checkpoint: {e}")))).await;
+                        let _ = tx
+                            .send(Err(tonic::Status::internal(format!(
+                                "read checkpoint: {e}"
+                            ))))
+                            .await;
                         break;
                     }
                 }

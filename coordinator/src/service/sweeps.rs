@@ -17,7 +17,10 @@ pub struct SweepApi<S>(pub Arc<Coordinator<S>>);
 
 #[tonic::async_trait]
 impl<S: Store> SweepService for SweepApi<S> {
-    async fn create_sweep(&self, req: Request<pb::CreateSweepRequest>) -> Result<Response<pb::Sweep>, Status> {
+    async fn create_sweep(
+        &self,
+        req: Request<pb::CreateSweepRequest>,
+    ) -> Result<Response<pb::Sweep>, Status> {
         let spec = spec_from_request(req.into_inner()).map_err(Error::from)?;
         let resolved = tokio::task::spawn_blocking(move || spec.resolve())
             .await
@@ -28,30 +31,58 @@ impl<S: Store> SweepService for SweepApi<S> {
         Ok(Response::new((&rec).into()))
     }
 
-    async fn list_sweeps(&self, _: Request<pb::ListSweepsRequest>) -> Result<Response<pb::ListSweepsResponse>, Status> {
+    async fn list_sweeps(
+        &self,
+        _: Request<pb::ListSweepsRequest>,
+    ) -> Result<Response<pb::ListSweepsResponse>, Status> {
         let sweeps = self.0.store.list_sweeps().await?;
-        Ok(Response::new(pb::ListSweepsResponse { sweeps: sweeps.iter().map(Into::into).collect() }))
+        Ok(Response::new(pb::ListSweepsResponse {
+            sweeps: sweeps.iter().map(Into::into).collect(),
+        }))
     }
 
-    async fn get_sweep(&self, req: Request<pb::GetSweepRequest>) -> Result<Response<pb::Sweep>, Status> {
-        let rec = self.0.store.sweep(SweepId(req.into_inner().sweep_id)).await?;
+    async fn get_sweep(
+        &self,
+        req: Request<pb::GetSweepRequest>,
+    ) -> Result<Response<pb::Sweep>, Status> {
+        let rec = self
+            .0
+            .store
+            .sweep(SweepId(req.into_inner().sweep_id))
+            .await?;
         Ok(Response::new((&rec).into()))
     }
 
-    async fn list_cells(&self, req: Request<pb::ListCellsRequest>) -> Result<Response<pb::ListCellsResponse>, Status> {
-        let cells = self.0.store.cells(SweepId(req.into_inner().sweep_id)).await?;
-        Ok(Response::new(pb::ListCellsResponse { cells: cells.iter().map(Into::into).collect() }))
+    async fn list_cells(
+        &self,
+        req: Request<pb::ListCellsRequest>,
+    ) -> Result<Response<pb::ListCellsResponse>, Status> {
+        let cells = self
+            .0
+            .store
+            .cells(SweepId(req.into_inner().sweep_id))
+            .await?;
+        Ok(Response::new(pb::ListCellsResponse {
+            cells: cells.iter().map(Into::into).collect(),
+        }))
     }
 
     type WatchSweepStream = ReceiverStream<Result<pb::SweepEvent, Status>>;
 
-    async fn watch_sweep(&self, req: Request<pb::WatchSweepRequest>) -> Result<Response<Self::WatchSweepStream>, Status> {
+    async fn watch_sweep(
+        &self,
+        req: Request<pb::WatchSweepRequest>,
+    ) -> Result<Response<Self::WatchSweepStream>, Status> {
         let id = req.into_inner().sweep_id;
         let mut rx = self.0.events.subscribe();
         let rec = self.0.store.sweep(SweepId(id)).await?;
         let (tx, out) = mpsc::channel(64);
         if rec.state != SweepState::Running {
-            let ev = pb::SweepEvent { sweep_id: id, unix_ms: now_ms(), kind: Some(Kind::Finished((&rec).into())) };
+            let ev = pb::SweepEvent {
+                sweep_id: id,
+                unix_ms: now_ms(),
+                kind: Some(Kind::Finished((&rec).into())),
+            };
             let _ = tx.send(Ok(ev)).await;
             return Ok(Response::new(ReceiverStream::new(out)));
         }
@@ -75,7 +106,10 @@ impl<S: Store> SweepService for SweepApi<S> {
         Ok(Response::new(ReceiverStream::new(out)))
     }
 
-    async fn get_promoted(&self, req: Request<pb::GetPromotedRequest>) -> Result<Response<pb::Promotion>, Status> {
+    async fn get_promoted(
+        &self,
+        req: Request<pb::GetPromotedRequest>,
+    ) -> Result<Response<pb::Promotion>, Status> {
         let r = req.into_inner();
         let terrain = (!r.terrain.is_empty()).then_some(r.terrain.as_str());
         let p = self.0.store.promoted(SweepId(r.sweep_id), terrain).await?;
@@ -84,15 +118,27 @@ impl<S: Store> SweepService for SweepApi<S> {
 
     type DownloadCheckpointStream = ReceiverStream<Result<pb::CheckpointChunk, Status>>;
 
-    async fn download_checkpoint(&self, req: Request<pb::DownloadCheckpointRequest>) -> Result<Response<Self::DownloadCheckpointStream>, Status> {
-        Ok(Response::new(self.0.download(&req.into_inner().sha256).await?))
+    async fn download_checkpoint(
+        &self,
+        req: Request<pb::DownloadCheckpointRequest>,
+    ) -> Result<Response<Self::DownloadCheckpointStream>, Status> {
+        Ok(Response::new(
+            self.0.download(&req.into_inner().sha256).await?,
+        ))
     }
 
-    async fn cancel_sweep(&self, req: Request<pb::CancelSweepRequest>) -> Result<Response<pb::Sweep>, Status> {
+    async fn cancel_sweep(
+        &self,
+        req: Request<pb::CancelSweepRequest>,
+    ) -> Result<Response<pb::Sweep>, Status> {
         let id = SweepId(req.into_inner().sweep_id);
         let (rec, leases) = self.0.store.cancel_sweep(id, now_ms()).await?;
         self.0.leases.cancel_sweep(id);
-        tracing::info!(sweep = id.0, running_leases = leases.len(), "sweep cancelled");
+        tracing::info!(
+            sweep = id.0,
+            running_leases = leases.len(),
+            "sweep cancelled"
+        );
         let sweep: pb::Sweep = (&rec).into();
         self.0.emit(id.0, Kind::Finished(sweep.clone()));
         Ok(Response::new(sweep))

@@ -101,7 +101,11 @@ impl AttemptEnd {
 /// never duplicates a row.
 pub trait Store: Send + Sync + 'static {
     /// Stores a new sweep and its expanded grid.
-    fn create_sweep(&self, spec: &ResolvedSpec, now_ms: i64) -> impl Future<Output = Result<SweepRecord>> + Send;
+    fn create_sweep(
+        &self,
+        spec: &ResolvedSpec,
+        now_ms: i64,
+    ) -> impl Future<Output = Result<SweepRecord>> + Send;
     /// All sweeps, newest first.
     fn list_sweeps(&self) -> impl Future<Output = Result<Vec<SweepRecord>>> + Send;
     /// One sweep.
@@ -109,28 +113,74 @@ pub trait Store: Send + Sync + 'static {
     /// The cells of a sweep in grid order.
     fn cells(&self, id: SweepId) -> impl Future<Output = Result<Vec<CellRecord>>> + Send;
     /// Cancels a sweep; returns it and the leases that were running.
-    fn cancel_sweep(&self, id: SweepId, now_ms: i64) -> impl Future<Output = Result<(SweepRecord, Vec<LeaseId>)>> + Send;
+    fn cancel_sweep(
+        &self,
+        id: SweepId,
+        now_ms: i64,
+    ) -> impl Future<Output = Result<(SweepRecord, Vec<LeaseId>)>> + Send;
     /// Registers a worker under a new id.
-    fn register_worker(&self, id: &WorkerId, info: &WorkerInfo, now_ms: i64) -> impl Future<Output = Result<()>> + Send;
+    fn register_worker(
+        &self,
+        id: &WorkerId,
+        info: &WorkerInfo,
+        now_ms: i64,
+    ) -> impl Future<Output = Result<()>> + Send;
     /// Records that workers were seen.
-    fn touch_workers(&self, ids: &[WorkerId], now_ms: i64) -> impl Future<Output = Result<()>> + Send;
+    fn touch_workers(
+        &self,
+        ids: &[WorkerId],
+        now_ms: i64,
+    ) -> impl Future<Output = Result<()>> + Send;
     /// Leases the next queued cell (see [`crate::sched::pick_next`]) to a worker slot.
-    fn lease_next(&self, worker: &WorkerId, slot: u32, now_ms: i64) -> impl Future<Output = Result<Option<LeaseGrant>>> + Send;
+    fn lease_next(
+        &self,
+        worker: &WorkerId,
+        slot: u32,
+        now_ms: i64,
+    ) -> impl Future<Output = Result<Option<LeaseGrant>>> + Send;
     /// Leases that are running according to the database (used at start-up).
     fn running_leases(&self) -> impl Future<Output = Result<Vec<RunningLease>>> + Send;
     /// The cell and sweep of a lease, refusing leases whose cell is closed.
     fn open_lease(&self, lease: LeaseId) -> impl Future<Output = Result<(CellId, SweepId)>> + Send;
     /// Stores (or replaces) epoch metrics of a lease's cell; returns rows written and the
     /// cell and sweep.
-    fn record_progress(&self, lease: LeaseId, epochs: &[(u32, BTreeMap<String, f64>)]) -> impl Future<Output = Result<(usize, CellId, SweepId)>> + Send;
+    fn record_progress(
+        &self,
+        lease: LeaseId,
+        epochs: &[(u32, BTreeMap<String, f64>)],
+    ) -> impl Future<Output = Result<(usize, CellId, SweepId)>> + Send;
     /// Records an uploaded checkpoint file (already in place under the data dir).
-    fn record_checkpoint(&self, lease: LeaseId, ckpt: &CheckpointRecord, rel_path: &str, now_ms: i64) -> impl Future<Output = Result<()>> + Send;
+    fn record_checkpoint(
+        &self,
+        lease: LeaseId,
+        ckpt: &CheckpointRecord,
+        rel_path: &str,
+        now_ms: i64,
+    ) -> impl Future<Output = Result<()>> + Send;
     /// Size and data-dir-relative path of a stored checkpoint.
     fn checkpoint_path(&self, sha256: &str) -> impl Future<Output = Result<(u64, String)>> + Send;
     /// Stores the result of a cell and promotes it if it is the best.
-    fn report_result(&self, lease: LeaseId, score: &GaitScore, epochs: u32, final_sha256: Option<&str>, now_ms: i64) -> impl Future<Output = Result<ResultOutcome>> + Send;
+    fn report_result(
+        &self,
+        lease: LeaseId,
+        score: &GaitScore,
+        epochs: u32,
+        final_sha256: Option<&str>,
+        now_ms: i64,
+    ) -> impl Future<Output = Result<ResultOutcome>> + Send;
     /// Ends an attempt without a result; the cell is requeued or failed.
-    fn end_attempt(&self, lease: LeaseId, end: AttemptEnd, error: &str, max_attempts: u32, now_ms: i64) -> impl Future<Output = Result<AttemptOutcome>> + Send;
+    fn end_attempt(
+        &self,
+        lease: LeaseId,
+        end: AttemptEnd,
+        error: &str,
+        max_attempts: u32,
+        now_ms: i64,
+    ) -> impl Future<Output = Result<AttemptOutcome>> + Send;
     /// The latest promotion of a sweep (terrain `None`: over all terrains).
-    fn promoted(&self, id: SweepId, terrain: Option<&str>) -> impl Future<Output = Result<PromotionRecord>> + Send;
+    fn promoted(
+        &self,
+        id: SweepId,
+        terrain: Option<&str>,
+    ) -> impl Future<Output = Result<PromotionRecord>> + Send;
 }

@@ -1,13 +1,17 @@
 //! The SQLite implementation of [`Store`]: WAL, one writer connection whose transactions
 //! start with `BEGIN IMMEDIATE` (so they never fail on a busy snapshot), a pool of readers.
 
-use super::{AttemptEnd, AttemptOutcome, LeaseGrant, ResultOutcome, RunningLease, Store, WorkerInfo};
+use super::{
+    AttemptEnd, AttemptOutcome, LeaseGrant, ResultOutcome, RunningLease, Store, WorkerInfo,
+};
 use crate::sched::{self, Candidate};
 use crate::{Error, Result};
 use gaitsweep_core::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
 use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, SweepId, SweepState, WorkerId};
 use gaitsweep_sim::GaitScore;
-use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous};
+use sqlx::sqlite::{
+    SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous,
+};
 use sqlx::{Row, Sqlite, SqlitePool, Transaction};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -26,7 +30,8 @@ pub struct SqliteStore {
 
 type Tx = Transaction<'static, Sqlite>;
 
-const CELL_COLUMNS: &str = "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, \
+const CELL_COLUMNS: &str =
+    "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, \
      c.seed, c.state, c.attempts, c.epochs_done, c.last_error, s.score, s.track, s.effort, s.tilt, \
      s.progress, s.fall_rate, s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots";
 
@@ -48,9 +53,15 @@ impl SqliteStore {
             .synchronous(SqliteSynchronous::Normal)
             .foreign_keys(true)
             .busy_timeout(Duration::from_secs(10));
-        let write = SqlitePoolOptions::new().max_connections(1).connect_with(opts.clone()).await?;
+        let write = SqlitePoolOptions::new()
+            .max_connections(1)
+            .connect_with(opts.clone())
+            .await?;
         MIGRATOR.run(&write).await?;
-        let read = SqlitePoolOptions::new().max_connections(4).connect_with(opts.read_only(true)).await?;
+        let read = SqlitePoolOptions::new()
+            .max_connections(4)
+            .connect_with(opts.read_only(true))
+            .await?;
         Ok(Self { write, read })
     }
 
@@ -112,14 +123,22 @@ fn sweep_from_row(r: &SqliteRow) -> Result<SweepRecord> {
 }
 
 async fn cell_tx(tx: &mut Tx, id: CellId) -> Result<CellRecord> {
-    let sql = format!("SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.id = ?");
-    let row = sqlx::query(&sql).bind(id.0).fetch_optional(&mut **tx).await?;
+    let sql = format!(
+        "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.id = ?"
+    );
+    let row = sqlx::query(&sql)
+        .bind(id.0)
+        .fetch_optional(&mut **tx)
+        .await?;
     cell_from_row(&row.ok_or(Error::UnknownCell(id))?)
 }
 
 async fn sweep_tx(tx: &mut Tx, id: SweepId) -> Result<SweepRecord> {
     let sql = format!("SELECT {SWEEP_COLUMNS} FROM sweeps w WHERE w.id = ?");
-    let row = sqlx::query(&sql).bind(id.0).fetch_optional(&mut **tx).await?;
+    let row = sqlx::query(&sql)
+        .bind(id.0)
+        .fetch_optional(&mut **tx)
+        .await?;
     sweep_from_row(&row.ok_or(Error::UnknownSweep(id))?)
 }
 
@@ -143,7 +162,10 @@ async fn lease_cell(tx: &mut Tx, lease: LeaseId) -> Result<(CellId, SweepId, Cel
 
 fn refuse_closed(cell: CellId, state: CellState) -> Result<()> {
     if matches!(state, CellState::Done | CellState::Cancelled) {
-        return Err(Error::CellClosed { cell, state: state.to_string() });
+        return Err(Error::CellClosed {
+            cell,
+            state: state.to_string(),
+        });
     }
     Ok(())
 }
@@ -159,29 +181,45 @@ async fn finish_if_done(tx: &mut Tx, sweep: SweepId, now_ms: i64) -> Result<Opti
     if !sched::sweep_finished(open as u32) {
         return Ok(None);
     }
-    let changed = sqlx::query("UPDATE sweeps SET state = 'done', finished_unix_ms = ? WHERE id = ? AND state = 'running'")
-        .bind(now_ms)
-        .bind(sweep.0)
-        .execute(&mut **tx)
-        .await?
-        .rows_affected();
+    let changed = sqlx::query(
+        "UPDATE sweeps SET state = 'done', finished_unix_ms = ? WHERE id = ? AND state = 'running'",
+    )
+    .bind(now_ms)
+    .bind(sweep.0)
+    .execute(&mut **tx)
+    .await?
+    .rows_affected();
     if changed == 0 {
         return Ok(None);
     }
     Ok(Some(sweep_tx(tx, sweep).await?))
 }
 
-async fn checkpoint_of(ex: &mut Tx, sha: Option<String>, epoch: Option<i64>) -> Result<Option<CheckpointRecord>> {
+async fn checkpoint_of(
+    ex: &mut Tx,
+    sha: Option<String>,
+    epoch: Option<i64>,
+) -> Result<Option<CheckpointRecord>> {
     let Some(sha) = sha else { return Ok(None) };
     let size: Option<i64> = sqlx::query_scalar("SELECT size FROM checkpoints WHERE sha256 = ?")
         .bind(&sha)
         .fetch_optional(&mut **ex)
         .await?;
-    Ok(size.map(|size| CheckpointRecord { sha256: sha, size: size as u64, epoch: epoch.unwrap_or(0) as u32 }))
+    Ok(size.map(|size| CheckpointRecord {
+        sha256: sha,
+        size: size as u64,
+        epoch: epoch.unwrap_or(0) as u32,
+    }))
 }
 
 /// Promotes `cell` over all terrains and on its terrain if it beats the current best.
-async fn promote(tx: &mut Tx, cell: &CellRecord, score: f64, final_ckpt: Option<CheckpointRecord>, now_ms: i64) -> Result<Vec<PromotionRecord>> {
+async fn promote(
+    tx: &mut Tx,
+    cell: &CellRecord,
+    score: f64,
+    final_ckpt: Option<CheckpointRecord>,
+    now_ms: i64,
+) -> Result<Vec<PromotionRecord>> {
     let mut out = Vec::new();
     for terrain in ["", cell.terrain.as_str()] {
         let best: Option<(i64, f64)> = sqlx::query_as(
@@ -247,12 +285,20 @@ impl Store for SqliteStore {
 
     async fn list_sweeps(&self) -> Result<Vec<SweepRecord>> {
         let sql = format!("SELECT {SWEEP_COLUMNS} FROM sweeps w ORDER BY w.id DESC");
-        sqlx::query(&sql).fetch_all(&self.read).await?.iter().map(sweep_from_row).collect()
+        sqlx::query(&sql)
+            .fetch_all(&self.read)
+            .await?
+            .iter()
+            .map(sweep_from_row)
+            .collect()
     }
 
     async fn sweep(&self, id: SweepId) -> Result<SweepRecord> {
         let sql = format!("SELECT {SWEEP_COLUMNS} FROM sweeps w WHERE w.id = ?");
-        let row = sqlx::query(&sql).bind(id.0).fetch_optional(&self.read).await?;
+        let row = sqlx::query(&sql)
+            .bind(id.0)
+            .fetch_optional(&self.read)
+            .await?;
         sweep_from_row(&row.ok_or(Error::UnknownSweep(id))?)
     }
 
@@ -262,7 +308,13 @@ impl Store for SqliteStore {
             "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = ? \
              ORDER BY c.terrain_index, c.w1_index, c.w2_index"
         );
-        sqlx::query(&sql).bind(id.0).fetch_all(&self.read).await?.iter().map(cell_from_row).collect()
+        sqlx::query(&sql)
+            .bind(id.0)
+            .fetch_all(&self.read)
+            .await?
+            .iter()
+            .map(cell_from_row)
+            .collect()
     }
 
     async fn cancel_sweep(&self, id: SweepId, now_ms: i64) -> Result<(SweepRecord, Vec<LeaseId>)> {
@@ -332,7 +384,12 @@ impl Store for SqliteStore {
         Ok(())
     }
 
-    async fn lease_next(&self, worker: &WorkerId, slot: u32, now_ms: i64) -> Result<Option<LeaseGrant>> {
+    async fn lease_next(
+        &self,
+        worker: &WorkerId,
+        slot: u32,
+        now_ms: i64,
+    ) -> Result<Option<LeaseGrant>> {
         let mut tx = self.begin().await?;
         let known: Option<i64> = sqlx::query_scalar("SELECT 1 FROM workers WHERE id = ?")
             .bind(&worker.0)
@@ -365,7 +422,9 @@ impl Store for SqliteStore {
                 running: running.get(&sweep).copied().unwrap_or(0) as u32,
             })
             .collect();
-        let Some(cell_id) = sched::pick_next(&candidates) else { return Ok(None) };
+        let Some(cell_id) = sched::pick_next(&candidates) else {
+            return Ok(None);
+        };
         let (sha, epoch): (Option<String>, Option<i64>) = sqlx::query_as(
             "SELECT last_checkpoint_sha256, last_checkpoint_epoch FROM cells WHERE id = ?",
         )
@@ -394,7 +453,12 @@ impl Store for SqliteStore {
             .fetch_one(&mut *tx)
             .await?;
         tx.commit().await?;
-        Ok(Some(LeaseGrant { lease: LeaseId(lease), cell, spec: serde_json::from_str(&spec_json)?, resume }))
+        Ok(Some(LeaseGrant {
+            lease: LeaseId(lease),
+            cell,
+            spec: serde_json::from_str(&spec_json)?,
+            resume,
+        }))
     }
 
     async fn running_leases(&self) -> Result<Vec<RunningLease>> {
@@ -406,7 +470,12 @@ impl Store for SqliteStore {
         .await?;
         Ok(rows
             .into_iter()
-            .map(|(l, c, s, w)| RunningLease { lease: LeaseId(l), cell: CellId(c), sweep: SweepId(s), worker: WorkerId(w) })
+            .map(|(l, c, s, w)| RunningLease {
+                lease: LeaseId(l),
+                cell: CellId(c),
+                sweep: SweepId(s),
+                worker: WorkerId(w),
+            })
             .collect())
     }
 
@@ -417,7 +486,11 @@ impl Store for SqliteStore {
         Ok((cell, sweep))
     }
 
-    async fn record_progress(&self, lease: LeaseId, epochs: &[(u32, BTreeMap<String, f64>)]) -> Result<(usize, CellId, SweepId)> {
+    async fn record_progress(
+        &self,
+        lease: LeaseId,
+        epochs: &[(u32, BTreeMap<String, f64>)],
+    ) -> Result<(usize, CellId, SweepId)> {
         let mut tx = self.begin().await?;
         let (cell, sweep, state, _) = lease_cell(&mut tx, lease).await?;
         refuse_closed(cell, state)?;
@@ -449,7 +522,13 @@ impl Store for SqliteStore {
         Ok((rows, cell, sweep))
     }
 
-    async fn record_checkpoint(&self, lease: LeaseId, ckpt: &CheckpointRecord, rel_path: &str, now_ms: i64) -> Result<()> {
+    async fn record_checkpoint(
+        &self,
+        lease: LeaseId,
+        ckpt: &CheckpointRecord,
+        rel_path: &str,
+        now_ms: i64,
+    ) -> Result<()> {
         let mut tx = self.begin().await?;
         let (cell, _, state, _) = lease_cell(&mut tx, lease).await?;
         refuse_closed(cell, state)?;
@@ -486,15 +565,23 @@ impl Store for SqliteStore {
     }
 
     async fn checkpoint_path(&self, sha256: &str) -> Result<(u64, String)> {
-        let row: Option<(i64, String)> = sqlx::query_as("SELECT size, path FROM checkpoints WHERE sha256 = ?")
-            .bind(sha256)
-            .fetch_optional(&self.read)
-            .await?;
+        let row: Option<(i64, String)> =
+            sqlx::query_as("SELECT size, path FROM checkpoints WHERE sha256 = ?")
+                .bind(sha256)
+                .fetch_optional(&self.read)
+                .await?;
         let (size, path) = row.ok_or_else(|| Error::UnknownCheckpoint(sha256.to_string()))?;
         Ok((size as u64, path))
     }
 
-    async fn report_result(&self, lease: LeaseId, score: &GaitScore, epochs: u32, final_sha256: Option<&str>, now_ms: i64) -> Result<ResultOutcome> {
+    async fn report_result(
+        &self,
+        lease: LeaseId,
+        score: &GaitScore,
+        epochs: u32,
+        final_sha256: Option<&str>,
+        now_ms: i64,
+    ) -> Result<ResultOutcome> {
         let mut tx = self.begin().await?;
         let (cell_id, sweep, state, _) = lease_cell(&mut tx, lease).await?;
         let scored: Option<i64> = sqlx::query_scalar("SELECT 1 FROM scores WHERE cell_id = ?")
@@ -503,10 +590,18 @@ impl Store for SqliteStore {
             .await?;
         if scored.is_some() {
             let cell = cell_tx(&mut tx, cell_id).await?;
-            return Ok(ResultOutcome { duplicate: true, cell, promotions: vec![], finished: None });
+            return Ok(ResultOutcome {
+                duplicate: true,
+                cell,
+                promotions: vec![],
+                finished: None,
+            });
         }
         if state == CellState::Cancelled {
-            return Err(Error::CellClosed { cell: cell_id, state: state.to_string() });
+            return Err(Error::CellClosed {
+                cell: cell_id,
+                state: state.to_string(),
+            });
         }
         let final_ckpt = match final_sha256 {
             Some(sha) => {
@@ -555,24 +650,41 @@ impl Store for SqliteStore {
         .bind(cell_id.0)
         .execute(&mut *tx)
         .await?;
-        sqlx::query("UPDATE cells SET state = 'done', epochs_done = MAX(epochs_done, ?) WHERE id = ?")
-            .bind(epochs as i64)
-            .bind(cell_id.0)
-            .execute(&mut *tx)
-            .await?;
+        sqlx::query(
+            "UPDATE cells SET state = 'done', epochs_done = MAX(epochs_done, ?) WHERE id = ?",
+        )
+        .bind(epochs as i64)
+        .bind(cell_id.0)
+        .execute(&mut *tx)
+        .await?;
         let cell = cell_tx(&mut tx, cell_id).await?;
         let promotions = promote(&mut tx, &cell, score.score, final_ckpt, now_ms).await?;
         let finished = finish_if_done(&mut tx, sweep, now_ms).await?;
         tx.commit().await?;
-        Ok(ResultOutcome { duplicate: false, cell, promotions, finished })
+        Ok(ResultOutcome {
+            duplicate: false,
+            cell,
+            promotions,
+            finished,
+        })
     }
 
-    async fn end_attempt(&self, lease: LeaseId, end: AttemptEnd, error: &str, max_attempts: u32, now_ms: i64) -> Result<AttemptOutcome> {
+    async fn end_attempt(
+        &self,
+        lease: LeaseId,
+        end: AttemptEnd,
+        error: &str,
+        max_attempts: u32,
+        now_ms: i64,
+    ) -> Result<AttemptOutcome> {
         let mut tx = self.begin().await?;
         let (cell_id, sweep, state, attempt_state) = lease_cell(&mut tx, lease).await?;
         if attempt_state != "running" {
             let cell = cell_tx(&mut tx, cell_id).await?;
-            return Ok(AttemptOutcome { cell, finished: None });
+            return Ok(AttemptOutcome {
+                cell,
+                finished: None,
+            });
         }
         sqlx::query("UPDATE attempts SET state = ?, ended_unix_ms = ?, error = ? WHERE id = ?")
             .bind(end.as_str())
@@ -581,10 +693,12 @@ impl Store for SqliteStore {
             .bind(lease.0)
             .execute(&mut *tx)
             .await?;
-        let others: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM attempts WHERE cell_id = ? AND state = 'running'")
-            .bind(cell_id.0)
-            .fetch_one(&mut *tx)
-            .await?;
+        let others: i64 = sqlx::query_scalar(
+            "SELECT COUNT(*) FROM attempts WHERE cell_id = ? AND state = 'running'",
+        )
+        .bind(cell_id.0)
+        .fetch_one(&mut *tx)
+        .await?;
         if state == CellState::Running && others == 0 {
             let attempts: i64 = sqlx::query_scalar("SELECT attempts FROM cells WHERE id = ?")
                 .bind(cell_id.0)
@@ -622,6 +736,12 @@ impl Store for SqliteStore {
                 .fetch_one(&mut *tx)
                 .await?;
         let checkpoint = checkpoint_of(&mut tx, sha, Some(epochs)).await?;
-        Ok(PromotionRecord { sweep_id: id, terrain: terrain.map(str::to_string), cell, checkpoint, promoted_unix_ms: at })
+        Ok(PromotionRecord {
+            sweep_id: id,
+            terrain: terrain.map(str::to_string),
+            cell,
+            checkpoint,
+            promoted_unix_ms: at,
+        })
     }
 }

@@ -38,25 +38,49 @@ struct Args {
     json: bool,
 }
 
-fn parse_setting(s: &str) -> Result<(String, gaitsweep_sim::robot::JointBackend, usize, usize), String> {
+fn parse_setting(
+    s: &str,
+) -> Result<(String, gaitsweep_sim::robot::JointBackend, usize, usize), String> {
     let parts: Vec<&str> = s.split(':').collect();
-    let [b, i, g] = parts[..] else { return Err(format!("expected backend:iterations:pgs, got {s}")) };
+    let [b, i, g] = parts[..] else {
+        return Err(format!("expected backend:iterations:pgs, got {s}"));
+    };
     let backend = match b {
         "multibody" => gaitsweep_sim::robot::JointBackend::Multibody,
         "impulse" => gaitsweep_sim::robot::JointBackend::Impulse,
         _ => return Err(format!("unknown backend {b}")),
     };
-    Ok((s.to_string(), backend, i.parse().map_err(|e| format!("{e}"))?, g.parse().map_err(|e| format!("{e}"))?))
+    Ok((
+        s.to_string(),
+        backend,
+        i.parse().map_err(|e| format!("{e}"))?,
+        g.parse().map_err(|e| format!("{e}"))?,
+    ))
 }
 
 fn run(p: &Preset, terrain: TerrainKind, n: usize, steps: usize, threads: usize) -> Result<f64> {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
     pool.install(|| -> Result<f64> {
-        let mut env = VecEnv::new(p, EnvConfig { terrain, num_envs: n, w1: 7.0, w2: -6.0, seed: 3, difficulty: Some(3), episode_seconds: 20.0 })?;
+        let mut env = VecEnv::new(
+            p,
+            EnvConfig {
+                terrain,
+                num_envs: n,
+                w1: 7.0,
+                w2: -6.0,
+                seed: 3,
+                difficulty: Some(3),
+                episode_seconds: 20.0,
+            },
+        )?;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
         let mut actions = vec![0.0f32; n * 12];
         let mut step = |env: &mut VecEnv| -> Result<()> {
-            actions.iter_mut().for_each(|a| *a = rng.random_range(-1.0..1.0));
+            actions
+                .iter_mut()
+                .for_each(|a| *a = rng.random_range(-1.0..1.0));
             env.step(&actions)?;
             Ok(())
         };
@@ -88,9 +112,12 @@ fn main() -> Result<()> {
             d.control.pgs_iterations = *pgs;
             settings.push((label.as_str(), d));
         }
-        if !a.no_default && preset.control.solver_iterations != 4 {
+        if !a.no_default {
+            // rapier's own defaults: one multibody, 4 solver iterations, 1 internal PGS iteration.
             let mut d = preset.clone();
+            d.control.joints = gaitsweep_sim::robot::JointBackend::Multibody;
             d.control.solver_iterations = 4;
+            d.control.pgs_iterations = 1;
             settings.push(("rapier default", d));
         }
         for terrain in &a.terrains {
@@ -99,7 +126,10 @@ fn main() -> Result<()> {
                 for &th in &a.threads {
                     let rate = run(p, terrain, a.robots_per_env, a.steps, th)?;
                     if a.json {
-                        println!("{}", serde_json::json!({"robot": robot, "terrain": terrain.to_string(), "setting": label, "solver_iterations": p.control.solver_iterations, "threads": th, "robot_steps_per_s": rate}));
+                        println!(
+                            "{}",
+                            serde_json::json!({"robot": robot, "terrain": terrain.to_string(), "setting": label, "solver_iterations": p.control.solver_iterations, "threads": th, "robot_steps_per_s": rate})
+                        );
                     } else {
                         println!("| {robot} | {terrain} | {:?} {} it, {} pgs ({label}) | {th} | {rate:.0} |", p.control.joints, p.control.solver_iterations, p.control.pgs_iterations);
                     }

@@ -3,7 +3,9 @@
 
 #![allow(dead_code)]
 
-use gaitsweep_core::pb::{self, sweep_service_client::SweepServiceClient, worker_service_client::WorkerServiceClient};
+use gaitsweep_core::pb::{
+    self, sweep_service_client::SweepServiceClient, worker_service_client::WorkerServiceClient,
+};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::Mutex;
@@ -79,7 +81,10 @@ where
         if let Some(v) = f().await {
             return v;
         }
-        assert!(start.elapsed() < timeout, "timed out after {timeout:?} waiting for {what}");
+        assert!(
+            start.elapsed() < timeout,
+            "timed out after {timeout:?} waiting for {what}"
+        );
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
 }
@@ -97,15 +102,26 @@ impl Coord {
         let data = root.join("data");
         let addr_file = data.join("coordinator.addr");
         let _ = std::fs::remove_file(&addr_file);
-        let mut args: Vec<String> = ["serve", "--listen", listen, "--data-dir"].iter().map(|s| s.to_string()).collect();
+        let mut args: Vec<String> = ["serve", "--listen", listen, "--data-dir"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
         args.push(data.display().to_string());
         args.extend(extra.iter().map(|s| s.to_string()));
         let n = std::fs::read_dir(root).map(|d| d.count()).unwrap_or(0);
-        let proc = Proc::spawn("coordinator", &args, root.join(format!("coordinator-{n}.log")));
-        let addr = wait_for("the coordinator's address file", Duration::from_secs(30), || {
-            let f = addr_file.clone();
-            async move { std::fs::read_to_string(f).ok().filter(|s| !s.is_empty()) }
-        })
+        let proc = Proc::spawn(
+            "coordinator",
+            &args,
+            root.join(format!("coordinator-{n}.log")),
+        );
+        let addr = wait_for(
+            "the coordinator's address file",
+            Duration::from_secs(30),
+            || {
+                let f = addr_file.clone();
+                async move { std::fs::read_to_string(f).ok().filter(|s| !s.is_empty()) }
+            },
+        )
         .await;
         Coord { proc, addr, data }
     }
@@ -115,7 +131,11 @@ impl Coord {
     }
 
     pub async fn channel(&self) -> Channel {
-        Channel::from_shared(self.url()).unwrap().connect().await.expect("connect to coordinator")
+        Channel::from_shared(self.url())
+            .unwrap()
+            .connect()
+            .await
+            .expect("connect to coordinator")
     }
 
     pub async fn sweeps(&self) -> SweepServiceClient<Channel> {
@@ -130,7 +150,11 @@ impl Coord {
         let opts = sqlx::sqlite::SqliteConnectOptions::new()
             .filename(self.data.join("gaitsweep.sqlite"))
             .read_only(true);
-        sqlx::sqlite::SqlitePoolOptions::new().max_connections(1).connect_with(opts).await.expect("open db")
+        sqlx::sqlite::SqlitePoolOptions::new()
+            .max_connections(1)
+            .connect_with(opts)
+            .await
+            .expect("open db")
     }
 }
 
@@ -161,10 +185,12 @@ pub fn tiny_spec(w1: &[f64], w2: &[f64], epochs: u32) -> String {
 }
 
 pub async fn create(c: &mut SweepServiceClient<Channel>, toml: String) -> pb::Sweep {
-    c.create_sweep(pb::CreateSweepRequest { spec: Some(pb::create_sweep_request::Spec::Toml(toml)) })
-        .await
-        .expect("create sweep")
-        .into_inner()
+    c.create_sweep(pb::CreateSweepRequest {
+        spec: Some(pb::create_sweep_request::Spec::Toml(toml)),
+    })
+    .await
+    .expect("create sweep")
+    .into_inner()
 }
 
 /// Waits until the sweep is no longer running; returns it.
