@@ -51,6 +51,9 @@ pub enum ClientCmd {
         conn: Conn,
         /// Sweep id.
         sweep: i64,
+        /// Print a cell's training progress every N epochs (0: never).
+        #[arg(long, default_value_t = 10)]
+        every: u32,
     },
     /// Cancel a sweep.
     Cancel {
@@ -166,7 +169,7 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
                 .cells;
             print!("{}", render_show(&s, &cells));
         }
-        ClientCmd::Watch { conn, sweep } => {
+        ClientCmd::Watch { conn, sweep, every } => {
             let mut c = connect(&conn).await?;
             let mut stream = c
                 .watch_sweep(pb::WatchSweepRequest { sweep_id: sweep })
@@ -186,7 +189,7 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
                             .map(|s| format!(" score {:.4}", s.score))
                             .unwrap_or_default()
                     ),
-                    Some(Kind::Progress(p)) => println!(
+                    Some(Kind::Progress(p)) if every > 0 && p.epoch % every == 0 => println!(
                         "cell {} epoch {}{}",
                         p.cell_id,
                         p.epoch,
@@ -194,6 +197,7 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
                             .map(|r| format!(" mean return {r:.4}"))
                             .unwrap_or_default()
                     ),
+                    Some(Kind::Progress(_)) => {}
                     Some(Kind::Promotion(p)) => {
                         let cell = p.cell.unwrap_or_default();
                         let on = if p.terrain.is_empty() {
