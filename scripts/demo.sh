@@ -44,7 +44,10 @@ created=$("$BIN/coordinator" create "$SPEC")
 echo "$created"
 SWEEP=$(echo "$created" | sed -n 's/^created sweep \([0-9]*\).*/\1/p')
 start=$(date +%s)
-"$BIN/coordinator" watch "$SWEEP"
+# In the background and waited for, so that Ctrl-C or SIGTERM runs the trap at once.
+"$BIN/coordinator" watch "$SWEEP" &
+pids+=($!)
+wait $!
 echo "sweep finished in $(( $(date +%s) - start )) s"
 "$BIN/coordinator" show "$SWEEP" | tee "$OUT/grid.txt"
 "$BIN/coordinator" fetch-best "$SWEEP" --out "$OUT/best.safetensors"

@@ -38,6 +38,9 @@ pub struct ServeConfig {
     pub max_checkpoint_bytes: u64,
 }
 
+/// How long open calls (e.g. `watch` streams) may run on after the shutdown signal.
+const SHUTDOWN_GRACE: Duration = Duration::from_secs(3);
+
 /// Runs the coordinator until `shutdown` resolves.
 pub async fn serve(
     cfg: ServeConfig,
@@ -96,7 +99,15 @@ pub async fn serve(
 
     let background = tokio::spawn(expiry_loop(coord.clone()));
     let incoming = tonic::transport::server::TcpIncoming::from(listener).with_nodelay(Some(true));
-    let result = builder
+    // tonic's graceful shutdown waits for every open call, and a `watch` stream never ends
+    // by itself: after the signal, open calls get SHUTDOWN_GRACE to finish.
+    let stopping = Arc::new(tokio::sync::Notify::new());
+    let notify = stopping.clone();
+    let shutdown = async move {
+        shutdown.await;
+        notify.notify_one();
+    };
+    let server = builder
         .layer(tonic::service::InterceptorLayer::new(TokenCheck::new(
             cfg.token.as_deref(),
         )))
@@ -110,8 +121,17 @@ pub async fn serve(
         .add_service(pb::sweep_service_server::SweepServiceServer::new(SweepApi(
             coord.clone(),
         )))
-        .serve_with_incoming_shutdown(incoming, shutdown)
-        .await;
+        .serve_with_incoming_shutdown(incoming, shutdown);
+    let result = tokio::select! {
+        r = server => r,
+        _ = async {
+            stopping.notified().await;
+            tokio::time::sleep(SHUTDOWN_GRACE).await;
+        } => {
+            tracing::info!(seconds = SHUTDOWN_GRACE.as_secs(), "open calls did not finish in time; closing them");
+            Ok(())
+        }
+    };
     background.abort();
     result.map_err(|e| Error::Server(format!("serving failed: {e}")))
 }

@@ -191,6 +191,30 @@ pub struct PpoConfig {
     pub clip_value_loss: bool,
 }
 
+impl Default for PpoConfig {
+    /// legged_gym's (rsl_rl's) defaults for ANYmal.
+    fn default() -> Self {
+        PpoConfig {
+            actor_hidden: vec![512, 256, 128],
+            critic_hidden: vec![512, 256, 128],
+            init_noise_std: 1.0,
+            clip_param: 0.2,
+            gamma: 0.99,
+            lam: 0.95,
+            value_loss_coef: 1.0,
+            entropy_coef: 0.01,
+            learning_rate: 1e-3,
+            desired_kl: 0.01,
+            adaptive_lr: true,
+            max_grad_norm: 1.0,
+            num_learning_epochs: 5,
+            num_mini_batches: 4,
+            steps_per_env: 24,
+            clip_value_loss: true,
+        }
+    }
+}
+
 impl PpoConfig {
     /// Overrides scalar hyperparameters by name (`clip_param = 0.1`, ...). Booleans take
     /// 0/1; integers must be whole. An unknown name is an error listing the known ones.

@@ -248,7 +248,7 @@ impl RobotWorld {
             return;
         }
         let link_ids = std::mem::take(&mut self.link_ids);
-        let (mb, _) = self.multibody_mut();
+        let (mb, _) = self.multibody_mut_with_bodies();
         let ndofs = mb.ndofs();
         let mut disp = vec![0.0f32; ndofs];
         let root = mb.root().joint();
@@ -268,42 +268,29 @@ impl RobotWorld {
             disp[link.assembly_id()] = q[k] - link.joint().coords()[3];
         }
         self.link_ids = link_ids;
-        let (mb, _) = self.multibody_mut();
+        let (mb, _) = self.multibody_mut_with_bodies();
         mb.apply_displacements(&disp);
         mb.generalized_velocity_mut().fill(0.0);
         self.sync_bodies();
     }
 
-    fn multibody_mut(&mut self) -> (&mut Multibody, usize) {
-        let h = self
-            .world
+    fn multibody_index(&self) -> MultibodyIndex {
+        self.world
             .multibody_joints
             .rigid_body_link(self.bodies[1])
             .expect("robot is a multibody")
-            .multibody;
-        (
-            self.world
-                .multibody_joints
-                .get_multibody_mut(h)
-                .expect("multibody exists"),
-            0,
-        )
+            .multibody
     }
 
+    /// The robot's multibody and the rigid-body set, borrowed together.
     fn multibody_mut_with_bodies(&mut self) -> (&mut Multibody, &mut RigidBodySet) {
-        let h = self
-            .world
+        let h = self.multibody_index();
+        let w = &mut self.world;
+        let mb = w
             .multibody_joints
-            .rigid_body_link(self.bodies[1])
-            .expect("robot is a multibody")
-            .multibody;
-        (
-            self.world
-                .multibody_joints
-                .get_multibody_mut(h)
-                .expect("multibody exists"),
-            &mut self.world.bodies,
-        )
+            .get_multibody_mut(h)
+            .expect("multibody exists");
+        (mb, &mut w.bodies)
     }
 
     fn sync_bodies(&mut self) {
@@ -324,12 +311,7 @@ impl RobotWorld {
     }
 
     fn multibody(&self) -> &Multibody {
-        let h = self
-            .world
-            .multibody_joints
-            .rigid_body_link(self.bodies[1])
-            .expect("robot is a multibody")
-            .multibody;
+        let h = self.multibody_index();
         self.world
             .multibody_joints
             .get_multibody(h)

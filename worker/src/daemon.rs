@@ -131,7 +131,23 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
         slots.spawn(slot_loop(ctx.clone(), slot));
     }
     tokio::select! {
-        _ = gaitsweep_core::shutdown_signal() => tracing::info!("stopping: leases in progress will expire and resume elsewhere"),
+        _ = gaitsweep_core::shutdown_signal() => {
+            tracing::info!("stopping: each slot checkpoints its cell at the end of the epoch and uploads it");
+            SHUTDOWN.store(true, Ordering::Relaxed);
+            // Training threads use libtorch until they return; exiting before them would tear
+            // libtorch down under their feet.
+            let drained = tokio::time::timeout(SHUTDOWN_GRACE, async {
+                while let Some(r) = slots.join_next().await {
+                    if let Err(e) = r {
+                        tracing::error!(error = %e, "slot task ended");
+                    }
+                }
+            })
+            .await;
+            if drained.is_err() {
+                tracing::warn!(seconds = SHUTDOWN_GRACE.as_secs(), "slots did not stop in time; their leases will expire");
+            }
+        }
         Some(r) = slots.join_next() => if let Err(e) = r { tracing::error!(error = %e, "slot task ended") },
     }
     Ok(())
@@ -206,7 +222,8 @@ fn transient(s: &Status) -> bool {
     )
 }
 
-/// Calls `f` until it succeeds, fails permanently, or `stop` is set.
+/// Calls `f` until it succeeds, fails permanently, or `stop` is set (or, once the worker
+/// is stopping, after a few attempts).
 async fn retry<T, F, Fut>(
     what: &str,
     backoff: &Backoff,
@@ -230,7 +247,12 @@ where
                 }
                 return Ok(r.into_inner());
             }
-            Err(s) if transient(&s) && !stop.is_some_and(|s| s.load(Ordering::Relaxed)) => {
+            // A stopping worker tries a few times only: its coordinator may be stopping too.
+            Err(s)
+                if transient(&s)
+                    && !stop.is_some_and(|s| s.load(Ordering::Relaxed))
+                    && !(SHUTDOWN.load(Ordering::Relaxed) && attempt >= 3) =>
+            {
                 let d = backoff.delay(attempt);
                 if attempt == 0 || attempt % 10 == 0 {
                     tracing::warn!(call = what, code = ?s.code(), error = %s.message(), retry_in_ms = d.as_millis() as u64, "coordinator unreachable, retrying");
@@ -243,8 +265,15 @@ where
     }
 }
 
+/// Set when the process is asked to stop: training threads end their current epoch, write
+/// and upload a checkpoint, and no new cell is leased.
+static SHUTDOWN: AtomicBool = AtomicBool::new(false);
+
+/// How long a stopping worker waits for its slots to checkpoint and upload.
+const SHUTDOWN_GRACE: Duration = Duration::from_secs(60);
+
 async fn slot_loop(ctx: Arc<Ctx>, slot: u32) {
-    loop {
+    while !SHUTDOWN.load(Ordering::Relaxed) {
         let req = pb::LeaseRequest {
             worker_id: ctx.worker_id.clone(),
             slot,
@@ -298,7 +327,7 @@ impl TrainObserver for Bridge {
         let _ = self.tx.send(Event::Checkpoint(epoch, path.to_path_buf()));
     }
     fn should_stop(&self) -> bool {
-        self.stop.load(Ordering::Relaxed)
+        self.stop.load(Ordering::Relaxed) || SHUTDOWN.load(Ordering::Relaxed)
     }
 }
 
@@ -519,8 +548,8 @@ async fn deliver(
                 return Ok(());
             }
             Event::Done(Err(e)) => {
-                if stop.load(Ordering::Relaxed) {
-                    tracing::info!(lease, "cell stopped");
+                if stop.load(Ordering::Relaxed) || SHUTDOWN.load(Ordering::Relaxed) {
+                    tracing::info!(lease, "cell stopped; its lease expires and it resumes from the uploaded checkpoint");
                     return Ok(());
                 }
                 tracing::error!(lease, error = %e, "training failed");

@@ -102,24 +102,7 @@ pub struct TrainOptions {
 
 /// The preset's PPO table as the trainer's parameters.
 pub fn ppo_params(c: &PpoConfig) -> PpoParams {
-    PpoParams {
-        actor_hidden: c.actor_hidden.clone(),
-        critic_hidden: c.critic_hidden.clone(),
-        init_noise_std: c.init_noise_std,
-        clip_param: c.clip_param,
-        gamma: c.gamma,
-        lam: c.lam,
-        value_loss_coef: c.value_loss_coef,
-        entropy_coef: c.entropy_coef,
-        learning_rate: c.learning_rate,
-        desired_kl: c.desired_kl,
-        adaptive_lr: c.adaptive_lr,
-        max_grad_norm: c.max_grad_norm,
-        num_learning_epochs: c.num_learning_epochs,
-        num_mini_batches: c.num_mini_batches,
-        steps_per_env: c.steps_per_env,
-        clip_value_loss: c.clip_value_loss,
-    }
+    c.clone()
 }
 
 /// How a preset maps actions to joint targets, for exports.

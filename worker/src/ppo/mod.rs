@@ -63,66 +63,8 @@ pub trait VecEnvLike {
     }
 }
 
-/// PPO hyperparameters (the preset's `[ppo]` table, see `gaitsweep_sim::PpoConfig`).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct PpoParams {
-    /// Hidden layer sizes of the actor.
-    pub actor_hidden: Vec<i64>,
-    /// Hidden layer sizes of the critic.
-    pub critic_hidden: Vec<i64>,
-    /// Initial standard deviation of the action noise.
-    pub init_noise_std: f64,
-    /// PPO ratio clip (also the value clip).
-    pub clip_param: f64,
-    /// Discount.
-    pub gamma: f64,
-    /// GAE lambda.
-    pub lam: f64,
-    /// Weight of the value loss.
-    pub value_loss_coef: f64,
-    /// Weight of the entropy bonus.
-    pub entropy_coef: f64,
-    /// Initial Adam learning rate.
-    pub learning_rate: f64,
-    /// Target KL of the adaptive learning rate.
-    pub desired_kl: f64,
-    /// Adapt the learning rate from the KL divergence.
-    pub adaptive_lr: bool,
-    /// Gradient-norm clip.
-    pub max_grad_norm: f64,
-    /// Passes over each rollout.
-    pub num_learning_epochs: usize,
-    /// Mini-batches per pass.
-    pub num_mini_batches: usize,
-    /// Policy steps per robot per epoch.
-    pub steps_per_env: usize,
-    /// Clip the value loss around the rollout's values.
-    pub clip_value_loss: bool,
-}
-
-impl Default for PpoParams {
-    /// legged_gym's defaults for ANYmal.
-    fn default() -> Self {
-        Self {
-            actor_hidden: vec![512, 256, 128],
-            critic_hidden: vec![512, 256, 128],
-            init_noise_std: 1.0,
-            clip_param: 0.2,
-            gamma: 0.99,
-            lam: 0.95,
-            value_loss_coef: 1.0,
-            entropy_coef: 0.01,
-            learning_rate: 1e-3,
-            desired_kl: 0.01,
-            adaptive_lr: true,
-            max_grad_norm: 1.0,
-            num_learning_epochs: 5,
-            num_mini_batches: 4,
-            steps_per_env: 24,
-            clip_value_loss: true,
-        }
-    }
-}
+/// PPO hyperparameters: the preset's `[ppo]` table, used as is.
+pub use gaitsweep_sim::PpoConfig as PpoParams;
 
 /// Error for a NaN or infinity in `quantity`; the runner names the cell and epoch.
 pub(crate) fn non_finite(quantity: &str) -> crate::Error {
