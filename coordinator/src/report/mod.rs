@@ -266,22 +266,7 @@ pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportDat
     .fetch_all(db)
     .await?;
     for r in &rows {
-        let score: Option<f64> = r.try_get("score")?;
-        let score = match score {
-            Some(score) => Some(GaitScore {
-                score,
-                track: r.try_get("track")?,
-                effort: r.try_get("effort")?,
-                tilt: r.try_get("tilt")?,
-                progress: r.try_get("progress")?,
-                fall_rate: r.try_get("fall_rate")?,
-                mean_vel_error: r.try_get("mean_vel_error")?,
-                mean_abs_torque: r.try_get("mean_abs_torque")?,
-                cost_of_transport: r.try_get("cost_of_transport")?,
-                robots: r.try_get::<i64, _>("robots")? as usize,
-            }),
-            None => None,
-        };
+        let score = crate::store::sqlite::score_from_row(r)?;
         data.cells.push(ReportCell {
             id: r.try_get("id")?,
             terrain_index: r.try_get::<i64, _>("terrain_index")? as usize,

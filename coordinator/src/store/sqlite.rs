@@ -70,23 +70,27 @@ impl SqliteStore {
     }
 }
 
-fn cell_from_row(r: &SqliteRow) -> Result<CellRecord> {
-    let score: Option<f64> = r.try_get("score")?;
-    let score = match score {
-        Some(score) => Some(GaitScore {
-            score,
-            track: r.try_get("track")?,
-            effort: r.try_get("effort")?,
-            tilt: r.try_get("tilt")?,
-            progress: r.try_get("progress")?,
-            fall_rate: r.try_get("fall_rate")?,
-            mean_vel_error: r.try_get("mean_vel_error")?,
-            mean_abs_torque: r.try_get("mean_abs_torque")?,
-            cost_of_transport: r.try_get("cost_of_transport")?,
-            robots: r.try_get::<i64, _>("robots")? as usize,
-        }),
-        None => None,
+/// The score columns of a row joined with `scores` (`None` when the cell has no score).
+pub fn score_from_row(r: &SqliteRow) -> std::result::Result<Option<GaitScore>, sqlx::Error> {
+    let Some(score) = r.try_get::<Option<f64>, _>("score")? else {
+        return Ok(None);
     };
+    Ok(Some(GaitScore {
+        score,
+        track: r.try_get("track")?,
+        effort: r.try_get("effort")?,
+        tilt: r.try_get("tilt")?,
+        progress: r.try_get("progress")?,
+        fall_rate: r.try_get("fall_rate")?,
+        mean_vel_error: r.try_get("mean_vel_error")?,
+        mean_abs_torque: r.try_get("mean_abs_torque")?,
+        cost_of_transport: r.try_get("cost_of_transport")?,
+        robots: r.try_get::<i64, _>("robots")? as usize,
+    }))
+}
+
+fn cell_from_row(r: &SqliteRow) -> Result<CellRecord> {
+    let score = score_from_row(r)?;
     Ok(CellRecord {
         id: CellId(r.try_get("id")?),
         sweep_id: SweepId(r.try_get("sweep_id")?),
