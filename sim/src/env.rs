@@ -102,6 +102,7 @@ impl VecEnv {
             })
             .collect();
         let n = cfg.num_envs;
+        let preset = preset.for_terrain(cfg.terrain);
         let max_steps = (cfg.episode_seconds / preset.policy_dt()).round().max(1.0) as u32;
         let mut env = VecEnv {
             weights: GridWeights {
@@ -125,7 +126,7 @@ impl VecEnv {
             timeouts: vec![false; n],
             terms: vec![0.0; n * TERM_NAMES.len()],
             finished: Vec::new(),
-            preset: preset.clone(),
+            preset,
             terrain,
             agents,
             cfg,

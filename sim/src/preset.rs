@@ -443,6 +443,33 @@ impl Preset {
     pub fn obs_dim(&self) -> usize {
         48 + self.scan_len()
     }
+
+    /// Whether robots on `terrain` observe the height scan. Not on flat ground, as in
+    /// legged_gym's flat configurations (`measure_heights = False`): there every point
+    /// repeats the base height, and 187 copies of one input multiply Adam's effective
+    /// learning rate along it (each weight moves by ~lr).
+    pub fn scans_heights(terrain: crate::terrain::TerrainKind) -> bool {
+        terrain != crate::terrain::TerrainKind::Flat
+    }
+
+    /// This preset as robots on `terrain` use it: without the height scan on flat ground.
+    pub fn for_terrain(&self, terrain: crate::terrain::TerrainKind) -> Preset {
+        let mut p = self.clone();
+        if !Self::scans_heights(terrain) {
+            p.observation.scan_x.clear();
+            p.observation.scan_y.clear();
+        }
+        p
+    }
+
+    /// Observation size on `terrain`.
+    pub fn obs_dim_on(&self, terrain: crate::terrain::TerrainKind) -> usize {
+        if Self::scans_heights(terrain) {
+            self.obs_dim()
+        } else {
+            48
+        }
+    }
 }
 
 #[cfg(test)]
@@ -457,6 +484,15 @@ mod tests {
             (4, 7, 146)
         );
         assert_eq!(a.obs_dim(), 48 + 17 * 11);
+        assert_eq!(
+            a.obs_dim_on(crate::terrain::TerrainKind::Rough),
+            48 + 17 * 11
+        );
+        assert_eq!(a.obs_dim_on(crate::terrain::TerrainKind::Flat), 48);
+        assert_eq!(
+            a.for_terrain(crate::terrain::TerrainKind::Flat).obs_dim(),
+            48
+        );
         let h = Preset::load("heavy").unwrap();
         assert_eq!(
             (h.grid.w1.count, h.grid.w2.count, h.grid.agents_per_cell),

@@ -1,6 +1,7 @@
 //! Real-process sweeps: two workers finish a 2x2 sweep; a worker killed mid-cell is
 //! replaced and its cell resumes from its checkpoint; a coordinator killed mid-sweep is
-//! restarted and the sweep completes without losing or duplicating a score.
+//! restarted and the sweep completes without losing or duplicating a score; a worker whose
+//! coordinator lost its database registers again.
 
 mod common;
 
@@ -273,4 +274,30 @@ async fn coordinator_killed_and_restarted_mid_sweep_completes() {
         2 * LONG_EPOCHS as i64,
         "every epoch of both cells stored once"
     );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn worker_registers_again_with_a_coordinator_that_lost_its_database() {
+    let _g = heavy();
+    let tmp = tempfile::tempdir().unwrap();
+    for d in ["old", "new"] {
+        std::fs::create_dir_all(tmp.path().join(d)).unwrap();
+    }
+    let mut old = Coord::start(&tmp.path().join("old"), "127.0.0.1:0", &[]).await;
+    let addr = old.addr.clone();
+    let w = start_worker(tmp.path(), &old.url(), "a");
+    wait_for("the worker to register", Duration::from_secs(60), || {
+        let text = w.log_text();
+        async move { text.contains("worker registered").then_some(()) }
+    })
+    .await;
+    old.proc.kill();
+    // A new coordinator on the same address with an empty database: the worker's id is
+    // unknown there, so it must register again before it can lease.
+    let coord = Coord::start(&tmp.path().join("new"), &addr, &[]).await;
+    let mut c = coord.sweeps().await;
+    let sweep = create(&mut c, tiny_spec(&[2.0], &[-6.0], 2)).await;
+    let done = wait_done(&coord, sweep.sweep_id, SWEEP_TIMEOUT, &[&coord.proc, &w]).await;
+    assert_eq!(done.cells_done, 1, "{}", tail(&w.log_text(), 20));
+    assert!(w.log_text().contains("registered again"));
 }

@@ -105,6 +105,7 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
         slots: args.slots as u32,
         version: env!("CARGO_PKG_VERSION").to_string(),
     };
+    let reg_req = reg.clone();
     let reg = retry("register", &backoff, None, || {
         let mut c = client.clone();
         let r = reg.clone();
@@ -119,7 +120,8 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
     })?;
     let ctx = Arc::new(Ctx {
         client,
-        worker_id: reg.worker_id.clone(),
+        worker_id: std::sync::RwLock::new(reg.worker_id.clone()),
+        registration: reg_req,
         heartbeat: Duration::from_millis(reg.heartbeat_interval_ms.max(100) as u64),
         backoff,
         device,
@@ -184,7 +186,10 @@ fn connect(args: &DaemonArgs) -> Result<Client> {
 
 struct Ctx {
     client: Client,
-    worker_id: String,
+    /// Replaced when the coordinator no longer knows this worker (e.g. its database was
+    /// recreated) and the worker registers again.
+    worker_id: std::sync::RwLock<String>,
+    registration: pb::RegisterRequest,
     heartbeat: Duration,
     backoff: Backoff,
     device: tch::Device,
@@ -272,10 +277,51 @@ static SHUTDOWN: AtomicBool = AtomicBool::new(false);
 /// How long a stopping worker waits for its slots to checkpoint and upload.
 const SHUTDOWN_GRACE: Duration = Duration::from_secs(60);
 
+impl Ctx {
+    fn worker_id(&self) -> String {
+        self.worker_id
+            .read()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+
+    /// Registers again after the coordinator answered that `stale` is not registered; a
+    /// slot that finds another slot already did so keeps the new id.
+    async fn register_again(&self, stale: &str) {
+        if self.worker_id() != stale {
+            return;
+        }
+        let resp = retry("register", &self.backoff, None, || {
+            let mut c = self.client.clone();
+            let r = self.registration.clone();
+            async move { c.register(r).await }
+        })
+        .await;
+        match resp {
+            Ok(reg) => {
+                let mut id = self.worker_id.write().unwrap_or_else(|e| e.into_inner());
+                if *id == stale {
+                    tracing::warn!(old = %stale, worker = %reg.worker_id, "the coordinator no longer knew this worker; registered again");
+                    *id = reg.worker_id;
+                }
+            }
+            Err(s) => {
+                tracing::error!(code = ?s.code(), error = %s.message(), "cannot register again")
+            }
+        }
+    }
+}
+
+/// The coordinator's answer for a worker id it does not know (its database was replaced).
+fn is_unknown_worker(s: &tonic::Status) -> bool {
+    s.code() == Code::FailedPrecondition && s.message().contains("is not registered")
+}
+
 async fn slot_loop(ctx: Arc<Ctx>, slot: u32) {
     while !SHUTDOWN.load(Ordering::Relaxed) {
+        let worker_id = ctx.worker_id();
         let req = pb::LeaseRequest {
-            worker_id: ctx.worker_id.clone(),
+            worker_id: worker_id.clone(),
             slot,
         };
         let resp = retry("lease", &ctx.backoff, None, || {
@@ -299,6 +345,7 @@ async fn slot_loop(ctx: Arc<Ctx>, slot: u32) {
                 ))
                 .await
             }
+            Err(s) if is_unknown_worker(&s) => ctx.register_again(&worker_id).await,
             Err(s) => {
                 tracing::error!(slot, code = ?s.code(), error = %s.message(), "cannot lease cells, retrying in 5 s");
                 tokio::time::sleep(Duration::from_secs(5)).await;
@@ -393,7 +440,7 @@ async fn run_lease(ctx: &Ctx, slot: u32, lease: pb::Lease) -> Result<()> {
 
     let beat = tokio::spawn(heartbeat_loop(
         ctx.client.clone(),
-        ctx.worker_id.clone(),
+        ctx.worker_id(),
         id,
         ctx.heartbeat,
         stop.clone(),

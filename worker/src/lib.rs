@@ -5,6 +5,7 @@ pub mod checkpoint;
 pub mod cli;
 pub mod daemon;
 pub mod error;
+pub mod evaluate;
 pub mod export;
 pub mod ppo;
 pub mod render;

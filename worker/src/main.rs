@@ -28,6 +28,8 @@ enum Command {
     Export(cli::ExportArgs),
     /// Measure end-to-end training throughput on the simulator.
     BenchTrain(cli::BenchArgs),
+    /// Score a checkpoint with the evaluation rollout (deterministic or stochastic policy).
+    Eval(gaitsweep_worker::evaluate::EvalArgs),
     /// Render a checkpoint's gait (deterministic policy, one robot) as an animated GIF.
     Render(gaitsweep_worker::render::RenderArgs),
 }
@@ -45,6 +47,7 @@ fn main() -> anyhow::Result<()> {
         Some(Command::Train(a)) => cli::train(a)?,
         Some(Command::Export(a)) => cli::export(a)?,
         Some(Command::BenchTrain(a)) => cli::bench(a)?,
+        Some(Command::Eval(a)) => gaitsweep_worker::evaluate::run(a)?,
         Some(Command::Render(a)) => gaitsweep_worker::render::run(a)?,
         None => match cli.daemon {
             Some(d) => gaitsweep_worker::daemon::run_blocking(d)?,

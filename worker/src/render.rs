@@ -1,17 +1,16 @@
 //! `worker render`: an animated GIF of a checkpoint's gait. The policy is restored with
-//! the trainer's own code ([`Checkpoint::restore`] into a [`Ppo`]) and driven with its
-//! deterministic action ([`Ppo::act_deterministic`]: normalised observation, action mean),
-//! exactly as the scoring rollout does; one robot walks on the checkpoint's terrain and a
-//! frame is drawn by `gaitsweep_sim::render` every few policy steps.
+//! the trainer's own code ([`crate::evaluate::load_policy`]) and driven with its
+//! deterministic action ([`crate::ppo::Ppo::act_deterministic`]: normalised observation,
+//! action mean), exactly as the scoring rollout does; one robot walks on the checkpoint's
+//! terrain and a frame is drawn by `gaitsweep_sim::render` every few policy steps.
 
 use std::path::{Path, PathBuf};
 
 use clap::Args;
 use gaitsweep_sim::render::write_gif;
-use gaitsweep_sim::{EnvConfig, Preset, TerrainKind, VecEnv};
+use gaitsweep_sim::{EnvConfig, TerrainKind, VecEnv};
 
-use crate::checkpoint::Checkpoint;
-use crate::ppo::Ppo;
+use crate::evaluate::{check_dims, load_policy, LoadedPolicy};
 use crate::train::CURRICULUM_EVAL_DIFFICULTY;
 use crate::{Error, Result};
 
@@ -78,12 +77,11 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
             "--difficulty must be 0..=9, got {d}"
         )));
     }
-    let ckpt = Checkpoint::load(&a.checkpoint)?;
-    let meta = ckpt.meta.clone();
-    let mut preset = Preset::load(&meta.robot)?;
-    if preset.digest != meta.preset_digest {
-        tracing::warn!(robot = %meta.robot, "the robot preset changed since this checkpoint was trained; rendering with the current one");
-    }
+    let LoadedPolicy {
+        meta,
+        mut preset,
+        ppo,
+    } = load_policy(&a.checkpoint)?;
     if a.speed >= 0.0 {
         preset.commands.forward_speed = [a.speed, a.speed];
     }
@@ -98,6 +96,7 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
         .difficulty
         .or(meta.difficulty)
         .unwrap_or(CURRICULUM_EVAL_DIFFICULTY);
+    check_dims(&a.checkpoint, &meta, &preset, terrain)?;
     let dt = preset.policy_dt();
     let mut env = VecEnv::new(
         &preset,
@@ -112,27 +111,6 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
         },
     )?;
     env.set_auto_reset(false);
-    if (env.obs_dim(), env.act_dim()) != (meta.obs_dim, meta.act_dim) {
-        return Err(Error::checkpoint(
-            &a.checkpoint,
-            format!(
-                "policy has obs/act dims {}/{} but the {} preset now has {}/{}",
-                meta.obs_dim,
-                meta.act_dim,
-                meta.robot,
-                env.obs_dim(),
-                env.act_dim()
-            ),
-        ));
-    }
-    let mut ppo = Ppo::new(
-        meta.obs_dim,
-        meta.act_dim,
-        meta.ppo.clone(),
-        tch::Device::Cpu,
-        0,
-    );
-    ckpt.restore(&mut ppo)?;
 
     let every = a
         .every

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use gaitsweep_sim::TerrainKind;
 use gaitsweep_worker::checkpoint::Checkpoint;
+use gaitsweep_worker::evaluate::{eval, EvalArgs};
 use gaitsweep_worker::train::{train_cell, CellRunConfig, EpochMetrics, TrainObserver};
 
 #[derive(Default)]
@@ -105,6 +106,32 @@ fn train_cell_on_simulator_and_resume() {
     let score: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(full.join("score.json")).unwrap()).unwrap();
     assert!(score["track"].is_number() && score["fall_rate"].is_number());
+
+    // `worker eval` on the final checkpoint is the scoring rollout itself.
+    let eval_args = EvalArgs {
+        checkpoint: out.final_checkpoint.clone(),
+        terrain: None,
+        difficulty: None,
+        robots: 2,
+        seconds: 1.0,
+        seed: None,
+        noise: 0.0,
+    };
+    assert_eq!(eval(&eval_args).unwrap(), out.score);
+    let noisy = eval(&EvalArgs {
+        noise: 1.0,
+        ..eval_args.clone()
+    })
+    .unwrap();
+    assert!(noisy.score.is_finite() && noisy != out.score, "{noisy:?}");
+    // A flat-ground policy has no height scan: refused on rough, with the reason.
+    let e = eval(&EvalArgs {
+        terrain: Some(TerrainKind::Rough),
+        ..eval_args
+    })
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("obs/act dims 48/12 (trained on flat)"), "{e}");
 
     let resumed = dir.path().join("resumed");
     let ckpt2 = full.join("ckpt-000002.safetensors");

@@ -105,6 +105,24 @@ impl Ppo {
         Ok(())
     }
 
+    /// Actions sampled from the Gaussian policy with its standard deviation times `scale`
+    /// (1: as the robots act in training), current normalisation, no statistics update.
+    pub fn act_sampled(
+        &self,
+        obs: &[f32],
+        actions: &mut [f32],
+        scale: f32,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<()> {
+        self.act_deterministic(obs, actions)?;
+        let std: Vec<f32> = Vec::<f32>::try_from(self.model.log_std.exp().to_device(Device::Cpu))?;
+        for (k, a) in actions.iter_mut().enumerate() {
+            let z: f32 = rand_distr::Distribution::sample(&rand_distr::StandardNormal, rng);
+            *a += scale * std[k % std.len()] * z;
+        }
+        Ok(())
+    }
+
     /// Runs the learning epochs over `batch` (mini-batches shuffled with `rng`) and
     /// returns averaged statistics.
     pub fn update(&mut self, batch: &Batch, rng: &mut ChaCha8Rng) -> Result<UpdateStats> {
