@@ -35,7 +35,7 @@ pub struct EpochStats {
     pub sim_seconds: f64,
     /// Seconds spent in the policy forward passes and sampling of the rollout.
     pub inference_seconds: f64,
-    /// Seconds spent in GAE and the PPO update.
+    /// Seconds spent in the batched critic pass, GAE and the PPO update.
     pub update_seconds: f64,
     /// Robot-steps simulated.
     pub samples: u64,
@@ -164,13 +164,11 @@ impl<E: VecEnvLike> Runner<E> {
             let noise = Tensor::from_slice(&self.noise)
                 .view([n as i64, -1])
                 .to_device(device);
-            let (actions, log_probs, means, values) = tch::no_grad(|| {
+            let (actions, means) = tch::no_grad(|| {
                 let model = &self.ppo.model;
                 let means = model.action_mean(&obs);
-                let noise = noise * model.log_std.exp();
-                let actions = &means + noise;
-                let log_probs = model.log_prob(&means, &actions);
-                (actions, log_probs, means, model.value(&obs))
+                let actions = &means + noise * model.log_std.exp();
+                (actions, means)
             });
             actions
                 .to_device(Device::Cpu)
@@ -214,19 +212,22 @@ impl<E: VecEnvLike> Runner<E> {
                     self.ep_len[i] = 0;
                 }
             }
-            // Time-limit ends are not failures: bootstrap them with the critic's value.
-            let timeouts = Tensor::from_slice(&timeouts).to_device(device);
-            let rewards =
-                Tensor::from_slice(&rewards).to_device(device) + &values * gamma * timeouts;
-            let dones = Tensor::from_slice(&dones).to_device(device);
-            rollout.push(obs, actions, log_probs, means, values, rewards, dones);
+            let tensor = |v: &[f32]| Tensor::from_slice(v).to_device(device);
+            rollout.push(
+                obs,
+                actions,
+                means,
+                tensor(&rewards),
+                tensor(&dones),
+                tensor(&timeouts),
+            );
             self.obs_norm = self.observe(&next_raw)?;
             stats.inference_seconds += ti.elapsed().as_secs_f64();
         }
 
         let tu = Instant::now();
-        let last_values = tch::no_grad(|| self.ppo.model.value(&self.obs_norm));
-        let batch = tch::no_grad(|| rollout.finish(&last_values, gamma, lam));
+        let batch =
+            tch::no_grad(|| rollout.finish(&self.ppo.model, &self.obs_norm, gamma, lam));
         let label = self.label.clone();
         let epoch = self.epoch;
         stats.update = self

@@ -2,16 +2,21 @@
 
 use tch::{Kind, Tensor};
 
+use super::ActorCritic;
+
 /// Per-step tensors of a rollout, each `[N, ...]`, stacked to `[T, N, ...]` at the end.
+///
+/// Only what the policy step itself needs (the actor's means) is computed step by step;
+/// the critic's values and the log-probabilities are computed for the whole rollout in
+/// one batched pass in [`Rollout::finish`], with the same weights the robots acted with.
 #[derive(Debug, Default)]
 pub struct Rollout {
     obs: Vec<Tensor>,
     actions: Vec<Tensor>,
-    log_probs: Vec<Tensor>,
     means: Vec<Tensor>,
-    values: Vec<Tensor>,
     rewards: Vec<Tensor>,
     dones: Vec<Tensor>,
+    timeouts: Vec<Tensor>,
 }
 
 /// A finished rollout flattened to `[T * N, ...]`, ready for mini-batches.
@@ -34,65 +39,73 @@ pub struct Batch {
 }
 
 impl Rollout {
-    /// Records one policy step. `rewards` must already include the timeout bootstrap.
-    #[allow(clippy::too_many_arguments)]
+    /// Records one policy step: 1.0 in `dones` where an episode ended, in `timeouts` where
+    /// it ended by time (bootstrapped with the critic's value, not a failure).
     pub fn push(
         &mut self,
         obs: Tensor,
         actions: Tensor,
-        log_probs: Tensor,
         means: Tensor,
-        values: Tensor,
         rewards: Tensor,
         dones: Tensor,
+        timeouts: Tensor,
     ) {
         self.obs.push(obs);
         self.actions.push(actions);
-        self.log_probs.push(log_probs);
         self.means.push(means);
-        self.values.push(values);
         self.rewards.push(rewards);
         self.dones.push(dones);
+        self.timeouts.push(timeouts);
     }
 
-    /// Computes GAE with the critic's values of the observations after the last step
-    /// and flattens everything. The rollout is emptied.
-    pub fn finish(&mut self, last_values: &Tensor, gamma: f64, lam: f64) -> Batch {
-        let t = self.values.len();
+    /// Evaluates the critic and the log-probabilities over the whole rollout, computes GAE
+    /// with `last_obs` (the observations after the last step) and flattens everything.
+    /// The rollout is emptied. Call without gradients.
+    pub fn finish(&mut self, model: &ActorCritic, last_obs: &Tensor, gamma: f64, lam: f64) -> Batch {
+        let t = self.obs.len();
+        let cat = |v: &mut Vec<Tensor>| {
+            let out = Tensor::stack(v, 0);
+            v.clear();
+            out
+        };
+        let obs = cat(&mut self.obs);
+        let n = obs.size()[1];
+        let obs = obs.flatten(0, 1);
+        let actions = cat(&mut self.actions).flatten(0, 1);
+        let means = cat(&mut self.means).flatten(0, 1);
+        let log_probs = model.log_prob(&means, &actions);
+        let values = model.value(&obs);
+        let last_values = model.value(last_obs);
+        let step_values = values.view([t as i64, n]);
+        // Time-limit ends are not failures: bootstrap them with the critic's value.
+        let rewards = cat(&mut self.rewards) + &step_values * gamma * cat(&mut self.timeouts);
+        let dones = cat(&mut self.dones);
+
         let mut advantages: Vec<Tensor> = (0..t).map(|_| Tensor::new()).collect();
         let mut next_adv = last_values.zeros_like();
         for step in (0..t).rev() {
             let next_values = if step + 1 == t {
-                last_values
+                last_values.shallow_clone()
             } else {
-                &self.values[step + 1]
+                step_values.get(step as i64 + 1)
             };
-            let not_done = 1.0 - &self.dones[step];
-            let delta = &self.rewards[step] + &not_done * gamma * next_values - &self.values[step];
+            let not_done = 1.0 - dones.get(step as i64);
+            let delta = rewards.get(step as i64) + &not_done * gamma * next_values
+                - step_values.get(step as i64);
             next_adv = delta + not_done * (gamma * lam) * next_adv;
             advantages[step] = next_adv.shallow_clone();
         }
         let adv = Tensor::stack(&advantages, 0).flatten(0, 1);
-        let values = Tensor::stack(&self.values, 0).flatten(0, 1);
         let returns = &adv + &values;
         let advantages = (&adv - adv.mean(Kind::Float)) / (adv.std(true) + 1e-8);
-        let cat = |v: &mut Vec<Tensor>| {
-            let out = Tensor::stack(v, 0).flatten(0, 1);
-            v.clear();
-            out
-        };
-        let batch = Batch {
-            obs: cat(&mut self.obs),
-            actions: cat(&mut self.actions),
-            log_probs: cat(&mut self.log_probs),
-            means: cat(&mut self.means),
+        Batch {
+            obs,
+            actions,
+            log_probs,
+            means,
             values,
             returns,
             advantages,
-        };
-        self.values.clear();
-        self.rewards.clear();
-        self.dones.clear();
-        batch
+        }
     }
 }
