@@ -226,8 +226,7 @@ impl<E: VecEnvLike> Runner<E> {
         }
 
         let tu = Instant::now();
-        let batch =
-            tch::no_grad(|| rollout.finish(&self.ppo.model, &self.obs_norm, gamma, lam));
+        let batch = tch::no_grad(|| rollout.finish(&self.ppo.model, &self.obs_norm, gamma, lam));
         let label = self.label.clone();
         let epoch = self.epoch;
         stats.update = self

@@ -61,7 +61,13 @@ impl Rollout {
     /// Evaluates the critic and the log-probabilities over the whole rollout, computes GAE
     /// with `last_obs` (the observations after the last step) and flattens everything.
     /// The rollout is emptied. Call without gradients.
-    pub fn finish(&mut self, model: &ActorCritic, last_obs: &Tensor, gamma: f64, lam: f64) -> Batch {
+    pub fn finish(
+        &mut self,
+        model: &ActorCritic,
+        last_obs: &Tensor,
+        gamma: f64,
+        lam: f64,
+    ) -> Batch {
         let t = self.obs.len();
         let cat = |v: &mut Vec<Tensor>| {
             let out = Tensor::stack(v, 0);
