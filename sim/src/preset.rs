@@ -464,11 +464,12 @@ impl Preset {
 
     /// Observation size on `terrain`.
     pub fn obs_dim_on(&self, terrain: crate::terrain::TerrainKind) -> usize {
-        if Self::scans_heights(terrain) {
-            self.obs_dim()
-        } else {
-            48
-        }
+        self.obs_dim()
+            - if Self::scans_heights(terrain) {
+                0
+            } else {
+                self.scan_len()
+            }
     }
 }
 

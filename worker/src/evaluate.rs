@@ -116,24 +116,32 @@ pub fn eval(a: &EvalArgs) -> Result<GaitScore> {
         episode_seconds: a.seconds,
         seed: a.seed.unwrap_or(EVAL_SEED),
     };
+    score_policy(&preset, meta.w1, meta.w2, &cfg, &ppo, a.noise)
+}
+
+/// The gait score of `ppo`'s policy in the evaluation rollout `cfg` of cell (w1, w2):
+/// the action mean when `noise` is 0, else actions sampled with `noise` times the policy's
+/// standard deviation (drawn from a generator seeded with `cfg.seed`).
+pub fn score_policy(
+    preset: &Preset,
+    w1: f64,
+    w2: f64,
+    cfg: &EvalConfig,
+    ppo: &Ppo,
+    noise: f32,
+) -> Result<GaitScore> {
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let mut failed = None;
-    let score = evaluate(
-        &preset,
-        meta.w1 as f32,
-        meta.w2 as f32,
-        &cfg,
-        &mut |obs, act| {
-            if failed.is_none() {
-                let r = if a.noise > 0.0 {
-                    ppo.act_sampled(obs, act, a.noise, &mut rng)
-                } else {
-                    ppo.act_deterministic(obs, act)
-                };
-                failed = r.err();
-            }
-        },
-    )?;
+    let score = evaluate(preset, w1 as f32, w2 as f32, cfg, &mut |obs, act| {
+        if failed.is_none() {
+            let r = if noise > 0.0 {
+                ppo.act_sampled(obs, act, noise, &mut rng)
+            } else {
+                ppo.act_deterministic(obs, act)
+            };
+            failed = r.err();
+        }
+    })?;
     match failed {
         Some(e) => Err(e),
         None => Ok(score),

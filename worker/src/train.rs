@@ -5,9 +5,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use gaitsweep_sim::{
-    evaluate, EnvConfig, EvalConfig, GaitScore, PpoConfig, Preset, TerrainKind, VecEnv,
-};
+use gaitsweep_sim::{EnvConfig, EvalConfig, GaitScore, PpoConfig, Preset, TerrainKind, VecEnv};
 use serde::{Deserialize, Serialize};
 
 use crate::checkpoint::{self, Checkpoint, CheckpointMeta, NormalizerMeta, OptimizerMeta, RngMeta};
@@ -236,22 +234,7 @@ fn eval_policy(
         episode_seconds: cfg.eval_seconds,
         seed: EVAL_SEED,
     };
-    let mut failed = None;
-    let score = evaluate(
-        preset,
-        cfg.w1 as f32,
-        cfg.w2 as f32,
-        &ecfg,
-        &mut |obs, act| {
-            if failed.is_none() {
-                failed = ppo.act_deterministic(obs, act).err();
-            }
-        },
-    )?;
-    match failed {
-        Some(e) => Err(e),
-        None => Ok(score),
-    }
+    crate::evaluate::score_policy(preset, cfg.w1, cfg.w2, &ecfg, ppo, 0.0)
 }
 
 /// Trains one cell (see [`train_cell_with`]) with default options.

@@ -72,6 +72,33 @@ fn fit<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, text: &str, width: u32
     size
 }
 
+/// Draws a figure's title and subtitle (each shrunk to fit `width`) in a 78-pixel band at
+/// the top of `root` and returns the area below it.
+fn draw_header<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    subtitle: &str,
+    width: u32,
+) -> anyhow::Result<DrawingArea<DB, Shift>>
+where
+    DB::ErrorType: 'static,
+{
+    let (head, body) = root.split_vertically(78);
+    for (text, y, size, color) in [
+        (title, 12, 26.0, BLACK),
+        (subtitle, 46, 17.0, RGBColor(80, 80, 80)),
+    ] {
+        head.draw(&Text::new(
+            text.to_string(),
+            (20, y),
+            (SANS, fit(&head, text, width, size))
+                .into_font()
+                .color(&color),
+        ))?;
+    }
+    Ok(body)
+}
+
 fn luminance(c: RGBColor) -> f64 {
     (0.299 * c.0 as f64 + 0.587 * c.1 as f64 + 0.114 * c.2 as f64) / 255.0
 }
@@ -222,22 +249,7 @@ impl Figure for Heatmap<'_> {
     {
         root.fill(&WHITE)?;
         let (w, _) = self.size();
-        let (head, body) = root.split_vertically(78);
-        let width = self.size().0;
-        head.draw(&Text::new(
-            self.title.clone(),
-            (20, 12),
-            (SANS, fit(&head, &self.title, width, 26.0))
-                .into_font()
-                .color(&BLACK),
-        ))?;
-        head.draw(&Text::new(
-            self.subtitle.clone(),
-            (20, 46),
-            (SANS, fit(&head, &self.subtitle, width, 17.0))
-                .into_font()
-                .color(&RGBColor(80, 80, 80)),
-        ))?;
+        let body = draw_header(root, &self.title, &self.subtitle, self.size().0)?;
         let (main, bar) = body.split_horizontally(w - 150);
         let (nx, ny) = (self.w2.len() as i32, self.w1.len() as i32);
         let range = value_range(self.values.iter().flatten().flatten().copied());
@@ -440,22 +452,7 @@ impl Figure for Surface<'_> {
         DB::ErrorType: 'static,
     {
         root.fill(&WHITE)?;
-        let (head, body) = root.split_vertically(78);
-        let width = self.size().0;
-        head.draw(&Text::new(
-            self.title.clone(),
-            (20, 12),
-            (SANS, fit(&head, &self.title, width, 26.0))
-                .into_font()
-                .color(&BLACK),
-        ))?;
-        head.draw(&Text::new(
-            self.subtitle.clone(),
-            (20, 46),
-            (SANS, fit(&head, &self.subtitle, width, 17.0))
-                .into_font()
-                .color(&RGBColor(80, 80, 80)),
-        ))?;
+        let body = draw_header(root, &self.title, &self.subtitle, self.size().0)?;
         let span = |v: &[f64]| {
             let (lo, hi) = value_range(v.iter().copied()).unwrap_or((0.0, 1.0));
             let pad = (hi - lo).max(1.0) * 0.04;
