@@ -21,8 +21,10 @@ What is the same as simbench / the rapier environment:
     tilted so that gravity's base-z component > -0.3, or base lower than
     0.35 * nominal_base_height above the terrain) are respawned, checked every `chunk`
     policy steps (the rapier environment checks every policy step and also on base contact);
-  * only the base box and the foot spheres touch the ground (the URDF's leg cylinders are
-    removed, as the rapier robot has no leg colliders); no self-contacts; friction 1;
+  * the base box, the foot spheres and (setting "mujoco", as the rapier preset) the
+    URDF's thigh and shank cylinders as capsules of the same radius and length touch the
+    ground; setting "mujoco, no leg colliders" removes the leg shapes, as the rapier
+    setting of that name does; no self-contacts; friction 1;
   * terrains at difficulty level 3 (simbench's): flat = a plane; rough = uniform random
     heights in +-(0.02 + 0.1*0.3) m on a 0.2 m grid, bilinearly upsampled to a 0.1 m
     heightfield over a 24 m tile and quantised to 5 mm, as sim/src/terrain.rs (a different
@@ -122,7 +124,7 @@ def load_preset(robot: str) -> tuple[dict, str]:
     return p, os.path.join(d, p.get("urdf", "robot.urdf"))
 
 
-def build_model(preset: dict, urdf: str, grid: np.ndarray | None) -> mujoco.MjModel:
+def build_model(preset: dict, urdf: str, grid: np.ndarray | None, legs: bool = True) -> mujoco.MjModel:
     c = preset["control"]
     spec = mujoco.MjSpec.from_file(urdf)
     # Links without <inertial> (the feet) get no mass, as in the rapier model (not 1000 kg/m^3
@@ -139,6 +141,12 @@ def build_model(preset: dict, urdf: str, grid: np.ndarray | None) -> mujoco.MjMo
         owner = g.parent.name
         if owner == base.name or owner in feet:
             # Robot contact shapes: collide with the terrain (contype 1) but not each other.
+            g.contype, g.conaffinity = 0, 1
+            g.friction = [friction, 0.005, 0.0001]
+        elif legs and g.type in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
+            # Leg shapes as the rapier preset builds them: capsules of the cylinder's radius
+            # and half length (MuJoCo's size = [radius, half length] for both).
+            g.type = mujoco.mjtGeom.mjGEOM_CAPSULE
             g.contype, g.conaffinity = 0, 1
             g.friction = [friction, 0.005, 0.0001]
         else:
@@ -189,12 +197,12 @@ def build_model(preset: dict, urdf: str, grid: np.ndarray | None) -> mujoco.MjMo
 class Bench:
     """N robots of one preset on one terrain; models alternate over the terrain variants."""
 
-    def __init__(self, robot: str, terrain: str, n: int, level: int, seed: int):
+    def __init__(self, robot: str, terrain: str, n: int, level: int, seed: int, legs: bool = True):
         self.preset, urdf = load_preset(robot)
         p, c = self.preset, self.preset["control"]
         variants = 1 if terrain == "flat" else 2
         self.grids = [terrain_grid(terrain, level, v) for v in range(variants)]
-        self.models_v = [build_model(p, urdf, g) for g in self.grids]
+        self.models_v = [build_model(p, urdf, g, legs) for g in self.grids]
         self.models = [self.models_v[i % variants] for i in range(n)]
         self.n = n
         m = self.models_v[0]
@@ -358,15 +366,16 @@ def main() -> None:
     ap.add_argument("--mode", choices=["rollout", "procs"], default="rollout")
     ap.add_argument("--seed", type=int, default=9)
     ap.add_argument("--json", action="store_true", help="JSON lines (default: a markdown table)")
+    ap.add_argument("--legs", default="on", help="leg colliders: on, off or on,off (rollout mode)")
     a = ap.parse_args()
     if not a.json:
         print("| robot | terrain | setting | threads | robot-steps/s | respawns |")
         print("|---|---|---|---|---|---|")
     for robot in a.robots.split(","):
         for terrain in a.terrains.split(","):
-            for th in (int(t) for t in a.threads.split(",")):
+            for th, legs in ((int(t), l == "on") for t in a.threads.split(",") for l in a.legs.split(",")):
                 if a.mode == "rollout":
-                    b = Bench(robot, terrain, a.robots_per_env, a.level, a.seed)
+                    b = Bench(robot, terrain, a.robots_per_env, a.level, a.seed, legs)
                     rate, falls = run_rollout(b, th, a.steps, a.warmup, a.chunk)
                     m = b.models_v[0]
                 else:
@@ -374,6 +383,8 @@ def main() -> None:
                     p, urdf = load_preset(robot)
                     m = build_model(p, urdf, None)
                 setting = "mujoco" if a.mode == "rollout" else "mujoco procs"
+                if not legs:
+                    setting += ", no leg colliders"
                 if a.json:
                     print(json.dumps({
                         "robot": robot, "terrain": terrain, "setting": setting,

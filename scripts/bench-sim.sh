@@ -24,9 +24,9 @@ cargo build --release -p gaitsweep-sim --bin simbench >&2
 TMP="$(mktemp -d)"
 trap 'rm -rf "$TMP"' EXIT
 SIMBENCH=(target/release/simbench --json --robots anymal,heavy --terrains flat,rough,stairs
-          --threads 1,2 --steps "$STEPS" --extra multibody:1:1)
+          --threads 1,2 --steps "$STEPS" --no-legs --extra multibody:1:1)
 MUJOCO=("$PY" bench/mujoco_bench.py --json --robots anymal,heavy --terrains flat,rough,stairs
-        --threads 1,2 --steps "$STEPS")
+        --threads 1,2 --steps "$STEPS" --legs on,off)
 
 load_before="$(cut -d' ' -f1-3 /proc/loadavg)"
 start=$(date +%s)
@@ -52,20 +52,24 @@ def control(robot):
         return tomllib.load(f)["control"]
 rapier = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
 mujoco = [json.loads(l) for l in open(sys.argv[2]) if l.strip()]
-mj = {(r["robot"], r["terrain"], r["threads"]): r for r in mujoco}
-order = {"preset": 0, "multibody:1:1": 1, "rapier default": 2, "multibody:4:1": 3, "mujoco": 9}
+legs = lambda r: "no leg colliders" not in r["setting"]
+mj = {(r["robot"], r["terrain"], r["threads"], legs(r)): r for r in mujoco}
+order = {"preset": 0, "preset, no leg colliders": 1, "multibody:1:1": 2, "rapier default": 3,
+         "multibody:4:1": 4, "mujoco": 9, "mujoco, no leg colliders": 10}
 rows = rapier + mujoco
 rows.sort(key=lambda r: (r["robot"], ["flat", "rough", "stairs"].index(r["terrain"]), order.get(r["setting"], 1), r["threads"]))
-print("| robot | terrain | setting | solver iterations | threads | robot-steps/s | MuJoCo (same robot, terrain, threads) | ratio to MuJoCo |")
+print("| robot | terrain | setting | solver iterations | threads | robot-steps/s | MuJoCo (same robot, terrain, threads, leg colliders) | ratio to MuJoCo |")
 print("|---|---|---|---:|---:|---:|---:|---:|")
 for r in rows:
-    m = mj.get((r["robot"], r["terrain"], r["threads"]))
+    m = mj.get((r["robot"], r["terrain"], r["threads"], legs(r)))
     ref = m["robot_steps_per_s"] if m else float("nan")
     if r["setting"].startswith("mujoco"):
         setting = f'MuJoCo {r.get("mujoco_version", "")} ({r.get("solver", "").replace("mjSOL_", "").title()}, defaults)'
-    elif r["setting"] == "preset":
+        if not legs(r):
+            setting += ", no leg colliders"
+    elif r["setting"].startswith("preset"):
         c = control(r["robot"])
-        setting = f'preset: {c["joints"]}, {c["pgs_iterations"]} PGS'
+        setting = f'preset: {c["joints"]}, {c["pgs_iterations"]} PGS' + ("" if legs(r) else ", no leg colliders")
     elif r["setting"] == "rapier default":
         setting = "rapier's defaults: multibody, 1 PGS"
     else:
@@ -73,4 +77,16 @@ for r in rows:
         setting = f"{backend}, {pgs} PGS ({r['setting']})"
     print(f'| {r["robot"]} | {r["terrain"]} | {setting} | {r["solver_iterations"]} | {r["threads"]} '
           f'| {r["robot_steps_per_s"]:,.0f} | {ref:,.0f} | {r["robot_steps_per_s"] / ref:.2f} |')
+print()
+print("Leg-collider cost: 1 - (robot-steps/s with thigh and shank colliders) / (without), same run.")
+print()
+print("| robot | terrain | threads | rapier preset | MuJoCo |")
+print("|---|---|---:|---:|---:|")
+by = {(r["robot"], r["terrain"], r["threads"], r["setting"]): r["robot_steps_per_s"] for r in rows}
+for (robot, terrain, th, setting), v in sorted(by.items()):
+    if setting != "preset":
+        continue
+    cost = lambda on, off: f"{1 - on / off:.1%}" if on and off else "n/a"
+    print(f"| {robot} | {terrain} | {th} | {cost(v, by.get((robot, terrain, th, 'preset, no leg colliders')))} "
+          f"| {cost(by.get((robot, terrain, th, 'mujoco')), by.get((robot, terrain, th, 'mujoco, no leg colliders')))} |")
 EOF

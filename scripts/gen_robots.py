@@ -2,7 +2,21 @@
 """Writes robots/<name>/robot.urdf from the paper's Table 1 figures (DESIGN.md).
 
 Run once by hand when a figure changes; the URDFs are committed. Collision shapes are
-primitives (box body, capsule links, sphere feet) and every inertia is the one of its shape.
+primitives (box body, cylinder thighs and shanks, sphere feet) and every inertia is the one
+of its shape.
+
+Leg shapes: the simulation turns the cylinders into capsules of the same radius and length
+(legged_gym's replace_cylinder_with_capsule), so each cylinder stops one radius short of
+the joint it ends at: the thigh's capsule reaches the knee, and the shank's ends
+`foot_gap` above the foot sphere's bottom, so that a foot on flat ground is no shank
+contact (legged_gym penalises thigh and shank contacts).
+
+Joint limits (rad) follow the ranges of the public quadruped URDFs that legged_gym ships
+(Unitree A1: hip +-0.80, calf -2.82..-0.89; ANYmal's knee folds one way only), widened
+around this robot's default pose (HFE 0.8, KFE -1.6) so that walking never needs more:
+HAA +-0.72 (41 deg of abduction), HFE -1.0..2.6, KFE -2.7..-0.35 (the knee neither
+straightens nor folds through the thigh). The same angles hold for the heavy robot, whose
+legs have the same layout.
 """
 import math, pathlib
 
@@ -10,12 +24,14 @@ ROBOTS = {
     # total 25 kg, leg 4.39 kg, leg 0.6 m (thigh 0.3 + shank 0.3), body 0.9 x 0.5 (x 0.2 box)
     "anymal": dict(total=25.0, hip=1.4, thigh=1.6, shank=1.39, thigh_len=0.30, shank_len=0.30,
                    body=(0.9, 0.5, 0.2), hip_x=0.35, hip_y=0.15, hip_off=0.08, foot_r=0.03,
-                   link_r=0.04, effort=80.0, vel=20.0),
+                   link_r=0.04, effort=80.0, vel=20.0, foot_gap=0.08),
     # total 260 kg, leg 15.47 kg, leg 1.1 m (0.55 + 0.55), body 2.5 x 0.9 (x 0.4 box)
     "heavy": dict(total=260.0, hip=5.0, thigh=6.0, shank=4.47, thigh_len=0.55, shank_len=0.55,
                   body=(2.5, 0.9, 0.4), hip_x=1.0, hip_y=0.3, hip_off=0.15, foot_r=0.06,
-                  link_r=0.08, effort=1200.0, vel=15.0),
+                  link_r=0.08, effort=1200.0, vel=15.0, foot_gap=0.15),
 }
+
+LIMITS = {"HAA": (-0.72, 0.72), "HFE": (-1.0, 2.6), "KFE": (-2.7, -0.35)}
 
 def box_inertia(m, x, y, z):
     return (m * (y*y + z*z) / 12, m * (x*x + z*z) / 12, m * (x*x + y*y) / 12)
@@ -42,18 +58,24 @@ def urdf(name, p):
         tl, sl = p["thigh_len"], p["shank_len"]
         hip_i = cyl_inertia_z(p["hip"], r, 2 * r)
         out.append(f'  <link name="{leg}_HIP">\n' + inertial(p["hip"], (0, sy * p["hip_off"] / 2, 0), hip_i) + '  </link>\n')
+        sr = r * 0.75
+        # Thigh: from one radius below the hip axis to one radius above the knee (the capsule
+        # then spans hip to knee). Shank: from the knee to foot_gap above the foot's bottom.
+        t_len = tl - 2 * r
+        s_top, s_bot = -sr, -(sl + fr) + p["foot_gap"] + sr
+        s_len = s_top - s_bot
         out.append(f'  <link name="{leg}_THIGH">\n' + inertial(p["thigh"], (0, 0, -tl / 2), cyl_inertia_z(p["thigh"], r, tl)) +
-                   f'    <collision>\n      <origin xyz="0 0 {-tl/2:.4f}" rpy="0 0 0"/>\n      <geometry><cylinder radius="{r}" length="{tl}"/></geometry>\n    </collision>\n  </link>\n')
-        out.append(f'  <link name="{leg}_SHANK">\n' + inertial(p["shank"], (0, 0, -sl / 2), cyl_inertia_z(p["shank"], r * 0.75, sl)) +
-                   f'    <collision>\n      <origin xyz="0 0 {-sl/2:.4f}" rpy="0 0 0"/>\n      <geometry><cylinder radius="{r*0.75:.4f}" length="{sl}"/></geometry>\n    </collision>\n  </link>\n')
+                   f'    <collision>\n      <origin xyz="0 0 {-tl/2:.4f}" rpy="0 0 0"/>\n      <geometry><cylinder radius="{r}" length="{t_len:.4f}"/></geometry>\n    </collision>\n  </link>\n')
+        out.append(f'  <link name="{leg}_SHANK">\n' + inertial(p["shank"], (0, 0, -sl / 2), cyl_inertia_z(p["shank"], sr, sl)) +
+                   f'    <collision>\n      <origin xyz="0 0 {(s_top + s_bot)/2:.4f}" rpy="0 0 0"/>\n      <geometry><cylinder radius="{sr:.4f}" length="{s_len:.4f}"/></geometry>\n    </collision>\n  </link>\n')
         out.append(f'  <link name="{leg}_FOOT">\n    <collision>\n      <origin xyz="0 0 0" rpy="0 0 0"/>\n      <geometry><sphere radius="{fr}"/></geometry>\n    </collision>\n  </link>\n')
-        lim = f'<limit effort="{p["effort"]}" velocity="{p["vel"]}" lower="-3.14" upper="3.14"/>'
+        lim = {j: f'<limit effort="{p["effort"]}" velocity="{p["vel"]}" lower="{lo}" upper="{hi}"/>' for j, (lo, hi) in LIMITS.items()}
         out.append(f'  <joint name="{leg}_HAA" type="revolute">\n    <parent link="base"/><child link="{leg}_HIP"/>\n'
-                   f'    <origin xyz="{sx*p["hip_x"]} {sy*p["hip_y"]} 0" rpy="0 0 0"/>\n    <axis xyz="1 0 0"/>\n    {lim}\n  </joint>\n')
+                   f'    <origin xyz="{sx*p["hip_x"]} {sy*p["hip_y"]} 0" rpy="0 0 0"/>\n    <axis xyz="1 0 0"/>\n    {lim["HAA"]}\n  </joint>\n')
         out.append(f'  <joint name="{leg}_HFE" type="revolute">\n    <parent link="{leg}_HIP"/><child link="{leg}_THIGH"/>\n'
-                   f'    <origin xyz="0 {sy*p["hip_off"]} 0" rpy="0 0 0"/>\n    <axis xyz="0 1 0"/>\n    {lim}\n  </joint>\n')
+                   f'    <origin xyz="0 {sy*p["hip_off"]} 0" rpy="0 0 0"/>\n    <axis xyz="0 1 0"/>\n    {lim["HFE"]}\n  </joint>\n')
         out.append(f'  <joint name="{leg}_KFE" type="revolute">\n    <parent link="{leg}_THIGH"/><child link="{leg}_SHANK"/>\n'
-                   f'    <origin xyz="0 0 {-tl}" rpy="0 0 0"/>\n    <axis xyz="0 1 0"/>\n    {lim}\n  </joint>\n')
+                   f'    <origin xyz="0 0 {-tl}" rpy="0 0 0"/>\n    <axis xyz="0 1 0"/>\n    {lim["KFE"]}\n  </joint>\n')
         out.append(f'  <joint name="{leg}_FOOT_FIXED" type="fixed">\n    <parent link="{leg}_SHANK"/><child link="{leg}_FOOT"/>\n'
                    f'    <origin xyz="0 0 {-sl}" rpy="0 0 0"/>\n  </joint>\n')
     out.append('</robot>\n')

@@ -328,7 +328,8 @@ fn cell_state(s: i32) -> &'static str {
 }
 
 /// The sweep header and one score table per terrain: rows w1, columns w2 (log10 torque
-/// weight), `*` marks the best cell over all terrains, `+` the best on that terrain.
+/// weight), each score with the fall rate of its evaluation beside it; `*` marks the best
+/// cell over all terrains, `+` the best on that terrain.
 fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
     use std::fmt::Write;
     let mut o = String::new();
@@ -365,11 +366,11 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
             .map(|b| b.0);
         let _ = writeln!(
             o,
-            "\nterrain {terrain}: gait score (rows w1, columns w2 = log10 torque weight)"
+            "\nterrain {terrain}: gait score / fall rate of its evaluation (rows w1, columns w2 = log10 torque weight)"
         );
         let _ = write!(o, "{:>10}", "w1 \\ w2");
         for w2 in &s.w2_values {
-            let _ = write!(o, " {:>11.3}", w2);
+            let _ = write!(o, " {:>16.3}", w2);
         }
         o.push('\n');
         for (i, w1) in s.w1_values.iter().enumerate() {
@@ -391,13 +392,13 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                             } else {
                                 " "
                             };
-                            format!("{:.4}{mark}", sc.score)
+                            format!("{:.4}/{:>3.0}%{mark}", sc.score, 100.0 * sc.fall_rate)
                         }
                         (None, st) => format!("{} ", cell_state(st as i32)),
                     },
                     None => "- ".into(),
                 };
-                let _ = write!(o, " {:>11}", text);
+                let _ = write!(o, " {:>16}", text);
             }
             o.push('\n');
         }
@@ -406,12 +407,14 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         if let Some(b) = cells.iter().find(|c| c.cell_id == s.best_cell_id) {
             let _ = writeln!(
                 o,
-                "\nbest (*): cell {} on {}, w1 {:.3}, w2 {:.3}, score {:.4}",
+                "\nbest (*): cell {} on {}, w1 {:.3}, w2 {:.3}, score {:.4}, fall rate {:.1}%, |v_cmd - v| {:.3} m/s",
                 b.cell_id,
                 b.terrain,
                 b.w1,
                 b.w2,
-                b.score.map_or(f64::NAN, |x| x.score)
+                b.score.map_or(f64::NAN, |x| x.score),
+                b.score.map_or(f64::NAN, |x| 100.0 * x.fall_rate),
+                b.score.map_or(f64::NAN, |x| x.mean_vel_error)
             );
         }
     }

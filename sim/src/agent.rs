@@ -12,7 +12,7 @@ use crate::preset::Preset;
 use crate::reward::{self, GridWeights, RewardInput, RewardTerms};
 use crate::robot::RobotWorld;
 use crate::score::{ScoreAccumulator, ScoreStep};
-use crate::terrain::{Tile, TILE};
+use crate::terrain::{Tile, SUB_TILE};
 
 /// Joints of a quadruped.
 pub const NJ: usize = 12;
@@ -44,7 +44,7 @@ pub struct StepReport {
     pub reward: f32,
     /// The episode ended (fall or timeout).
     pub done: bool,
-    /// It ended by time or by leaving the tile, not by a fall.
+    /// It ended by time, not by a fall.
     pub timeout: bool,
 }
 
@@ -64,6 +64,10 @@ pub struct Agent {
     air: [f32; 4],
     last_contact: [bool; 4],
     pub(crate) step_in_episode: u32,
+    /// `step_in_episode` when the episode began (a staggered first episode starts late).
+    pub(crate) first_step: u32,
+    /// Distance the robot has been moved back by the terrain's period this episode.
+    shifted: [f32; 2],
     last_pos: [f32; 2],
     /// Score of the current episode.
     pub(crate) score: ScoreAccumulator,
@@ -90,6 +94,8 @@ impl Agent {
             air: [0.0; 4],
             last_contact: [true; 4],
             step_in_episode: 0,
+            first_step: 0,
+            shifted: [0.0; 2],
             last_pos: [0.0; 2],
             score: ScoreAccumulator::default(),
             terms: RewardTerms::default(),
@@ -124,6 +130,8 @@ impl Agent {
         self.air = [0.0; 4];
         self.last_contact = [true; 4];
         self.step_in_episode = 0;
+        self.first_step = 0;
+        self.shifted = [0.0; 2];
         self.score = ScoreAccumulator::default();
         self.frozen = false;
         self.sample_command(p);
@@ -137,10 +145,48 @@ impl Agent {
             (c.heading_gain * wrap(self.cmd.heading - yaw)).clamp(-c.max_yaw_rate, c.max_yaw_rate);
     }
 
-    /// Distance walked from the episode's origin (m).
+    /// Distance walked from the episode's origin (m), counting the moves back by the
+    /// terrain's period.
     pub(crate) fn walked(&self) -> f32 {
         let b = self.world.base().pos;
-        (b.x - self.origin[0]).hypot(b.y - self.origin[1])
+        (b.x - self.shifted[0] - self.origin[0]).hypot(b.y - self.shifted[1] - self.origin[1])
+    }
+
+    /// Starts this episode as if `steps` of it had passed (legged_gym's
+    /// `init_at_random_ep_len`): the robots of a batch then end their episodes at different
+    /// times.
+    pub(crate) fn skip_ahead(&mut self, steps: u32) {
+        self.step_in_episode = steps;
+        self.first_step = steps;
+    }
+
+    /// Seconds of this episode so far.
+    pub(crate) fn episode_seconds(&self, p: &Preset) -> f32 {
+        (self.step_in_episode - self.first_step) as f32 * p.policy_dt()
+    }
+
+    /// Keeps the robot within one terrain period of the tile's centre: the terrain repeats
+    /// every [`SUB_TILE`] metres, so moving the robot back by one period changes nothing it
+    /// feels, and the ground is unbounded.
+    fn recentre(&mut self) {
+        let b = self.world.base().pos;
+        let wrap = |v: f32| {
+            if v > SUB_TILE {
+                -SUB_TILE
+            } else if v < -SUB_TILE {
+                SUB_TILE
+            } else {
+                0.0
+            }
+        };
+        let (dx, dy) = (wrap(b.x), wrap(b.y));
+        if dx != 0.0 || dy != 0.0 {
+            self.world.shift(dx, dy);
+            self.shifted[0] += dx;
+            self.shifted[1] += dy;
+            self.last_pos[0] += dx;
+            self.last_pos[1] += dy;
+        }
     }
 
     /// Advances one policy step with `actions` (clipped to [-clip, clip]).
@@ -183,6 +229,7 @@ impl Agent {
         let heading_rot = Rotation::from_rotation_z(-yaw);
         let vh = heading_rot * base.linvel;
         let ang_b = base.rot.inverse() * base.angvel;
+        let lin_b = base.rot.inverse() * base.linvel;
         let grav_b = base.rot.inverse() * Vector::new(0.0, 0.0, -1.0);
         let mut contact = [false; 4];
         self.world.foot_contacts(&mut contact);
@@ -205,18 +252,24 @@ impl Agent {
             || grav_b.z > -0.3
             || base.pos.z - self.world.tile().height(base.pos.x, base.pos.y)
                 < 0.35 * p.nominal_base_height;
-        let off_tile = base.pos.x.abs().max(base.pos.y.abs()) > TILE / 2.0 - 1.0;
-        let timeout = !fell && (self.step_in_episode >= max_steps || off_tile);
+        let timeout = !fell && self.step_in_episode >= max_steps;
 
         let inp = RewardInput {
             cmd_speed: self.cmd.speed,
             cmd_yaw_rate: self.cmd_yaw_rate,
             vel_heading: [vh.x, vh.y, vh.z],
+            linvel_base: [lin_b.x, lin_b.y, lin_b.z],
             angvel_base: [ang_b.x, ang_b.y, ang_b.z],
             torque_sq: torque_sq / dec,
             dof_acc_sq,
             action_rate_sq,
             air_time,
+            leg_contacts: self.world.leg_contacts() as u32,
+            dof_pos_out: reward::dof_pos_out(
+                &self.q,
+                self.world.joint_limits(),
+                p.reward.soft_dof_pos_limit,
+            ),
             fell,
         };
         self.terms = reward::compute(&inp, w, &p.reward, dt);
@@ -236,6 +289,7 @@ impl Agent {
         );
         self.score.fell |= fell;
         self.last_pos = [base.pos.x, base.pos.y];
+        self.recentre();
         self.last_qd = self.qd;
         self.last_actions = self.actions;
 
@@ -245,7 +299,7 @@ impl Agent {
         }
         self.update_yaw_command(p);
         StepReport {
-            reward: self.terms.total(),
+            reward: self.terms.total(p.reward.only_positive_rewards),
             done: fell || timeout,
             timeout,
         }

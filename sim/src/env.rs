@@ -8,12 +8,24 @@ use crate::preset::Preset;
 use crate::reward::{GridWeights, TERM_NAMES};
 use crate::robot::RobotWorld;
 use crate::score::{self, GaitScore};
-use crate::terrain::{curriculum_update, TerrainKind, TerrainSet};
+use crate::terrain::{curriculum_update, TerrainKind, TerrainSet, TerrainUse};
 use crate::urdf::RobotModel;
+
+/// What an environment is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EnvMode {
+    /// Training: the training tiles, and the first episode of each robot starts at a random
+    /// step (legged_gym's `init_at_random_ep_len`) so that resets are staggered.
+    Train,
+    /// Evaluation: tiles from seeds disjoint from training's; every episode starts at step 0.
+    Eval,
+}
 
 /// Settings of a vectorised environment.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EnvConfig {
+    /// Training or evaluation.
+    pub mode: EnvMode,
     /// Terrain kind.
     pub terrain: TerrainKind,
     /// Number of robots.
@@ -40,7 +52,7 @@ pub struct StepResult<'a> {
     pub rewards: &'a [f32],
     /// Episode ended (fall or timeout) per robot.
     pub dones: &'a [bool],
-    /// Episode ended by time or by leaving the tile (bootstrap the value).
+    /// Episode ended by time (bootstrap the value).
     pub timeouts: &'a [bool],
     /// Weighted reward terms, row-major `[N * n_terms]`, in [`VecEnv::reward_term_names`] order.
     pub terms: &'a [f32],
@@ -92,7 +104,13 @@ impl VecEnv {
             )));
         }
         let model = RobotModel::load(preset)?;
-        let terrain = TerrainSet::new(cfg.terrain);
+        let terrain = TerrainSet::new(
+            cfg.terrain,
+            match cfg.mode {
+                EnvMode::Train => TerrainUse::Train,
+                EnvMode::Eval => TerrainUse::Eval,
+            },
+        );
         let level = cfg.difficulty.unwrap_or(0);
         let agents: Vec<Agent> = (0..cfg.num_envs)
             .into_par_iter()
@@ -176,11 +194,13 @@ impl VecEnv {
         &self.obs
     }
 
-    /// Resets every robot from `seed` (training reseeds at checkpoint boundaries so that
-    /// resumed runs replay exactly).
+    /// Resets every robot from `seed` (the start of a run, or its resumption). In training
+    /// mode each robot's episode then starts at a random step, as legged_gym's
+    /// `init_at_random_ep_len`, so that the robots do not all reset together.
     pub fn reseed(&mut self, seed: u64) {
-        use rand::SeedableRng;
+        use rand::{Rng, SeedableRng};
         let (p, terrain, od) = (&self.preset, &self.terrain, self.preset.obs_dim());
+        let (stagger, max_steps) = (self.cfg.mode == EnvMode::Train, self.max_steps);
         self.agents
             .par_iter_mut()
             .zip(self.obs.par_chunks_mut(od))
@@ -188,9 +208,19 @@ impl VecEnv {
             .for_each(|(i, (a, o))| {
                 a.rng = rand_chacha::ChaCha8Rng::seed_from_u64(mix(seed, i as u64));
                 a.reset(p, terrain.tile(a.level, i).clone());
+                if stagger {
+                    let start = a.rng.random_range(0..max_steps);
+                    a.skip_ahead(start);
+                }
                 a.observe(p, o);
             });
         self.finished.clear();
+    }
+
+    /// Steps each robot has been in its current episode, counted from its episode's
+    /// (possibly staggered) start step.
+    pub fn episode_steps(&self) -> Vec<u32> {
+        self.agents.iter().map(|a| a.step_in_episode).collect()
     }
 
     /// Current observations.
@@ -267,7 +297,9 @@ impl VecEnv {
                     done_score = Some(a.score.clone());
                     if auto_reset {
                         if curriculum {
-                            let commanded = a.cmd.speed * max_steps as f32 * p.policy_dt();
+                            // legged_gym demotes on the command times the full episode length;
+                            // a staggered first episode is shorter, so use the time it lasted.
+                            let commanded = a.cmd.speed * a.episode_seconds(p);
                             a.level = curriculum_update(a.level, a.walked(), commanded);
                         }
                         a.reset(p, terrain.tile(a.level, i).clone());
@@ -298,7 +330,7 @@ impl VecEnv {
     /// Scores of episodes that ended since the last reset, plus the running episodes of
     /// frozen (evaluated) robots; used by the evaluation.
     pub fn gait_score(&self) -> GaitScore {
-        score::summarize(&self.finished, self.mass)
+        score::summarize(&self.finished, self.mass, u64::from(self.max_steps))
     }
 
     /// Robot mass (kg).

@@ -34,6 +34,7 @@ pub fn evaluate(
     let mut env = VecEnv::new(
         preset,
         EnvConfig {
+            mode: crate::env::EnvMode::Eval,
             terrain: cfg.terrain,
             num_envs: cfg.num_robots,
             w1,

@@ -15,7 +15,7 @@ pub mod score;
 pub mod terrain;
 pub mod urdf;
 
-pub use env::{EnvConfig, StepResult, VecEnv};
+pub use env::{EnvConfig, EnvMode, StepResult, VecEnv};
 pub use error::{Error, Result};
 pub use eval::{evaluate, EvalConfig};
 pub use preset::{GridSpec, PpoConfig, Preset};

@@ -42,6 +42,14 @@ pub struct ControlConfig {
     pub pgs_iterations: usize,
     /// Friction coefficient of feet and terrain.
     pub friction: f32,
+    /// Leg cylinders of the URDF collide as capsules of the same radius and length
+    /// (legged_gym's `replace_cylinder_with_capsule`, default true).
+    #[serde(default = "yes")]
+    pub capsule_legs: bool,
+    /// Thigh and shank shapes collide with the terrain (default true; false leaves only
+    /// the base and the feet, for measuring what the leg contacts cost).
+    #[serde(default = "yes")]
+    pub leg_collisions: bool,
     /// Episode length (s) during training.
     pub episode_seconds: f32,
 }
@@ -52,6 +60,10 @@ fn default_backend() -> crate::robot::JointBackend {
 
 fn one() -> usize {
     1
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// Observation layout and scaling (legged_gym's).
@@ -110,8 +122,25 @@ pub struct RewardConfig {
     pub action_rate: f32,
     /// Feet air time reward.
     pub feet_air_time: f32,
-    /// Penalty on a fall (not on a timeout).
+    /// Penalty on a fall (not on a timeout), added after the clip at zero.
     pub termination: f32,
+    /// Penalty per thigh or shank shape touching the terrain (legged_gym's `collision`, 1).
+    #[serde(default = "one_f")]
+    pub collision: f32,
+    /// Penalty on joint positions outside the soft limits (legged_gym's `dof_pos_limits`,
+    /// 0 for ANYmal).
+    #[serde(default)]
+    pub dof_pos_limits: f32,
+    /// Soft limits: this fraction of the URDF's range around its middle (legged_gym 1.0).
+    #[serde(default = "one_f")]
+    pub soft_dof_pos_limit: f32,
+    /// Clip the per-step total at zero before the termination term (legged_gym: true).
+    #[serde(default = "yes")]
+    pub only_positive_rewards: bool,
+}
+
+fn one_f() -> f32 {
+    1.0
 }
 
 /// One axis of a grid: `count` values evenly spaced from `min` to `max`.
@@ -351,15 +380,21 @@ impl Preset {
     }
 
     /// Loads `dir/preset.toml` and checks it against the URDF it names.
+    ///
+    /// A preset may start with `base = "DIR"` (relative to its own directory): it is then
+    /// the preset of `DIR` with this file's values laid over it, table by table, so that a
+    /// variant (e.g. a narrower command range) states only what it changes.
     pub fn load_from_dir(dir: &Path) -> Result<Preset> {
         let path = dir.join("preset.toml");
         let err = |message: String| Error::Preset {
             path: path.clone(),
             message,
         };
-        let text = std::fs::read_to_string(&path).map_err(|e| err(format!("cannot read: {e}")))?;
-        let file: PresetFile =
-            toml::from_str(&text).map_err(|e| err(format!("invalid toml: {e}")))?;
+        let mut texts = Vec::new();
+        let merged = Self::read_layers(dir, &mut texts, 0)?;
+        let file: PresetFile = merged
+            .try_into()
+            .map_err(|e| err(format!("invalid preset: {e}")))?;
         let urdf_path = dir.join(&file.urdf);
         let urdf_bytes = std::fs::read(&urdf_path)
             .map_err(|e| err(format!("cannot read urdf {}: {e}", urdf_path.display())))?;
@@ -403,12 +438,11 @@ impl Preset {
         if !problems.is_empty() {
             return Err(err(problems.join("; ")));
         }
-        let digest = hex::encode(
-            Sha256::new()
-                .chain_update(text.as_bytes())
-                .chain_update(&urdf_bytes)
-                .finalize(),
-        );
+        let mut h = Sha256::new();
+        for t in &texts {
+            h.update(t.as_bytes());
+        }
+        let digest = hex::encode(h.chain_update(&urdf_bytes).finalize());
         Ok(Preset {
             name: file.name,
             dir: dir.to_path_buf(),
@@ -427,6 +461,50 @@ impl Preset {
             ppo: file.ppo,
             digest,
         })
+    }
+
+    /// `dir/preset.toml` as a TOML table with its `base` chain laid under it; the `urdf`
+    /// of each layer is made absolute so that it stays relative to the file naming it.
+    fn read_layers(dir: &Path, texts: &mut Vec<String>, depth: usize) -> Result<toml::Table> {
+        let path = dir.join("preset.toml");
+        let err = |message: String| Error::Preset {
+            path: path.clone(),
+            message,
+        };
+        if depth > 4 {
+            return Err(err("base presets nest more than 4 deep (a cycle?)".into()));
+        }
+        let text = std::fs::read_to_string(&path).map_err(|e| err(format!("cannot read: {e}")))?;
+        let mut table: toml::Table =
+            toml::from_str(&text).map_err(|e| err(format!("invalid toml: {e}")))?;
+        if let Some(toml::Value::String(u)) = table.get("urdf") {
+            let abs = dir.join(u).to_string_lossy().into_owned();
+            table.insert("urdf".into(), toml::Value::String(abs));
+        }
+        let base = match table.remove("base") {
+            None => None,
+            Some(toml::Value::String(b)) => Some(dir.join(b)),
+            Some(other) => {
+                return Err(err(format!(
+                    "base must be a preset directory (a string), found {other}"
+                )))
+            }
+        };
+        let mut merged = match base {
+            Some(b) => {
+                if !b.join("preset.toml").is_file() {
+                    return Err(err(format!(
+                        "base preset {} has no preset.toml",
+                        b.display()
+                    )));
+                }
+                Self::read_layers(&b, texts, depth + 1)?
+            }
+            None => toml::Table::new(),
+        };
+        texts.push(text);
+        merge(&mut merged, table);
+        Ok(merged)
     }
 
     /// Policy time step (s): `sim_dt * decimation`.
@@ -473,6 +551,18 @@ impl Preset {
     }
 }
 
+/// Lays `top` over `base`: tables merge key by key, anything else is replaced.
+fn merge(base: &mut toml::Table, top: toml::Table) {
+    for (k, v) in top {
+        match (base.get_mut(&k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(t)) => merge(b, t),
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -501,6 +591,37 @@ mod tests {
         );
         let w1 = a.grid.w1.values();
         assert!((w1[1] - 5.3333).abs() < 1e-3 && w1[3] == 12.0);
+    }
+
+    #[test]
+    fn a_preset_can_lay_its_changes_over_a_base() {
+        let dir = tempfile::tempdir().unwrap();
+        let base = robots_dir().join("anymal");
+        std::fs::write(
+            dir.path().join("preset.toml"),
+            format!(
+                "base = {:?}\nname = \"narrow\"\n[commands]\nforward_speed = [0.0, 1.0]\n",
+                base.display().to_string()
+            ),
+        )
+        .unwrap();
+        let p = Preset::load_from_dir(dir.path()).unwrap();
+        let a = Preset::load("anymal").unwrap();
+        assert_eq!(p.name, "narrow");
+        assert_eq!(p.commands.forward_speed, [0.0, 1.0]);
+        assert_eq!(p.commands.heading, a.commands.heading);
+        assert_eq!(p.control, a.control);
+        assert_eq!(p.urdf_path, base.join("robot.urdf"));
+        assert_ne!(p.digest, a.digest);
+        let proof = Preset::load(
+            robots_dir()
+                .join("../bench/learning-proof")
+                .to_str()
+                .unwrap(),
+        )
+        .unwrap();
+        assert_eq!(proof.commands.forward_speed, [0.0, 1.0]);
+        assert_eq!(proof.reward, a.reward);
     }
 
     #[test]

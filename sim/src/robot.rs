@@ -41,11 +41,20 @@ pub struct RobotWorld {
     backend: JointBackend,
     base_collider: ColliderHandle,
     feet: Vec<ColliderHandle>,
+    /// Thigh and shank shapes (every collision shape of a leg body but the feet): they
+    /// touch the terrain, and legged_gym's `collision` term counts their contacts.
+    legs: Vec<ColliderHandle>,
+    /// Joint position limits in action order (`None`: unlimited).
+    limits: Vec<Option<[f32; 2]>>,
     terrain: Option<ColliderHandle>,
     tile: Arc<Tile>,
     kp: f32,
     kd: f32,
     tau_max: f32,
+    /// For each joint, the bodies that move with its child (the child and its descendants).
+    subtrees: Vec<Vec<usize>>,
+    /// Mass, centre of mass (body frame) and inertia about it (body frame) of every body.
+    inertia: Vec<(f32, Vector, rapier3d::math::Matrix)>,
     default_pose: Vec<f32>,
 }
 
@@ -57,6 +66,19 @@ pub enum JointBackend {
     Multibody,
     /// Rigid bodies held together by impulse joint constraints.
     Impulse,
+}
+
+/// The rapier shape of a URDF primitive. Cylinders become capsules of the same radius and
+/// length when `capsules` is set (legged_gym's `replace_cylinder_with_capsule`): rapier's
+/// capsule-terrain contacts are analytic, its cylinder ones iterative.
+fn shared_shape(shape: &Shape, capsules: bool) -> SharedShape {
+    match *shape {
+        Shape::Cuboid(h) => SharedShape::cuboid(h.x, h.y, h.z),
+        Shape::Cylinder(hh, r) if capsules => SharedShape::capsule_z(hh, r),
+        Shape::Cylinder(hh, r) => SharedShape::cylinder(hh, r),
+        Shape::Capsule(hh, r) => SharedShape::capsule_z(hh, r),
+        Shape::Ball(r) => SharedShape::ball(r),
+    }
 }
 
 fn frame_for_axis(axis: Vector) -> Rotation {
@@ -90,27 +112,32 @@ impl RobotWorld {
                 .build();
             bodies.push(world.bodies.insert(rb));
         }
-        // Only the base and the feet touch the terrain; legs have no colliders (no
-        // self-contacts, no knee contacts), which keeps the narrow phase small.
+        // Every robot shape touches the terrain, none touches another part of the robot
+        // (legged_gym turns ANYmal's self-collisions off).
         let groups = InteractionGroups::new(ROBOT, TERRAIN, InteractionTestMode::And);
+        let capsules = preset.control.capsule_legs;
         let mut base_collider = None;
-        for (pose, shape) in &model.links[0].shapes {
-            let sh = match *shape {
-                Shape::Cuboid(h) => SharedShape::cuboid(h.x, h.y, h.z),
-                Shape::Cylinder(hh, r) => SharedShape::cylinder(hh, r),
-                Shape::Capsule(hh, r) => SharedShape::capsule_z(hh, r),
-                Shape::Ball(r) => SharedShape::ball(r),
-            };
-            let c = ColliderBuilder::new(sh)
-                .position(*pose)
-                .density(0.0)
-                .friction(friction)
-                .collision_groups(groups)
-                .build();
-            let h = world
-                .colliders
-                .insert_with_parent(c, bodies[0], &mut world.bodies);
-            base_collider.get_or_insert(h);
+        let mut legs = Vec::new();
+        for (bi, link) in model.links.iter().enumerate() {
+            if bi > 0 && !preset.control.leg_collisions {
+                continue;
+            }
+            for (pose, shape) in &link.shapes {
+                let c = ColliderBuilder::new(shared_shape(shape, capsules))
+                    .position(*pose)
+                    .density(0.0)
+                    .friction(friction)
+                    .collision_groups(groups)
+                    .build();
+                let h = world
+                    .colliders
+                    .insert_with_parent(c, bodies[bi], &mut world.bodies);
+                if bi == 0 {
+                    base_collider.get_or_insert(h);
+                } else {
+                    legs.push(h);
+                }
+            }
         }
         let base_collider =
             base_collider.expect("base has a collision shape (checked by the preset)");
@@ -134,14 +161,24 @@ impl RobotWorld {
         let mut joints = Vec::with_capacity(model.joints.len());
         let mut handles = Vec::with_capacity(model.joints.len());
         let mut frames = Vec::with_capacity(model.joints.len());
+        let mut pending = Vec::new();
         for j in &model.joints {
             let f = frame_for_axis(j.axis);
             let (f1, f2) = (j.origin * Pose::from_rotation(f), Pose::from_rotation(f));
-            let joint = GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
+            let mut builder = GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
                 .local_frame1(f1)
                 .local_frame2(f2)
-                .contacts_enabled(false)
-                .build();
+                .contacts_enabled(false);
+            if let (Some(lim), JointBackend::Multibody) = (j.limits, backend) {
+                // The joint angle is the rotation of frame 2 about frame 1's x (the axis).
+                // Impulse joints get the projection of `enforce_limits` instead: rapier
+                // 0.36's limit rows on chains of impulse joints at the preset's one solver
+                // iteration held some legs and let others pass 2 rad beyond their limits,
+                // depending on insertion order; stop torques were unstable on the heavy
+                // robot (measured with sim/tests/legs.rs, see BENCHMARKS.md).
+                builder = builder.limits(JointAxis::AngX, lim);
+            }
+            let joint = builder.build();
             match backend {
                 JointBackend::Multibody => handles.push(
                     world
@@ -150,13 +187,14 @@ impl RobotWorld {
                         .expect("a tree of revolute joints forms one multibody"),
                 ),
                 JointBackend::Impulse => {
-                    world
-                        .impulse_joints
-                        .insert(bodies[j.parent], bodies[j.child], joint, true);
+                    pending.push((bodies[j.parent], bodies[j.child], joint));
                 }
             }
             frames.push((f1, f2));
             joints.push((j.parent, j.child, j.axis));
+        }
+        for (a, b, joint) in pending {
+            world.impulse_joints.insert(a, b, joint, true);
         }
         let link_ids = handles
             .iter()
@@ -176,11 +214,39 @@ impl RobotWorld {
             backend,
             base_collider,
             feet,
+            legs,
+            limits: model.joints.iter().map(|j| j.limits).collect(),
             terrain: None,
             tile: tile.clone(),
             kp: preset.control.stiffness,
             kd: preset.control.damping,
             tau_max: preset.control.torque_limit,
+            subtrees: (0..model.joints.len())
+                .map(|k| {
+                    let mut sub = vec![model.joints[k].child];
+                    // Joints are listed parents first: a later joint whose parent is in the
+                    // subtree brings its child in.
+                    for j in &model.joints[k + 1..] {
+                        if sub.contains(&j.parent) {
+                            sub.push(j.child);
+                        }
+                    }
+                    sub
+                })
+                .collect(),
+            inertia: model
+                .links
+                .iter()
+                .map(|l| {
+                    let i = l.inertia;
+                    let m = rapier3d::math::Matrix::from_cols_array_2d(&[
+                        [i[0][0], i[1][0], i[2][0]],
+                        [i[0][1], i[1][1], i[2][1]],
+                        [i[0][2], i[1][2], i[2][2]],
+                    ]);
+                    (l.mass, l.com, m)
+                })
+                .collect(),
             default_pose: preset.default_pose.clone(),
         };
         rw.set_tile(tile);
@@ -195,19 +261,15 @@ impl RobotWorld {
                 .remove(h, &mut w.islands, &mut w.bodies, &mut w.soft_bodies, false);
         }
         let groups = InteractionGroups::new(TERRAIN, ROBOT, InteractionTestMode::And);
-        let builder = match &tile.grid {
+        // Every world on a tile shares its heightfield (one Arc), built once per tile.
+        let builder = match &tile.collider {
             None => ColliderBuilder::cuboid(crate::terrain::TILE, crate::terrain::TILE, 1.0)
                 .translation(Vector::new(0.0, 0.0, -1.0)),
-            Some(g) => {
-                // parry's heightfield lies in its local xz plane with y up; turn it so that
-                // local y is world z. Row i then runs along world -y.
-                let n = g.n;
-                let heights =
-                    rapier3d::parry::utils::Array2::from_fn(n, n, |i, j| g.h[j * n + (n - 1 - i)]);
-                let side = g.side();
-                ColliderBuilder::heightfield(heights, Vector::new(side, 1.0, side))
-                    .rotation(Vector::new(std::f32::consts::FRAC_PI_2, 0.0, 0.0))
-            }
+            Some(shape) => ColliderBuilder::new(shape.clone()).rotation(Vector::new(
+                std::f32::consts::FRAC_PI_2,
+                0.0,
+                0.0,
+            )),
         };
         let c = builder
             .friction(self.world.colliders[self.base_collider].friction())
@@ -346,7 +408,8 @@ impl RobotWorld {
         }
     }
 
-    /// One physics step with the PD law toward `targets`; writes the applied torques.
+    /// One physics step with the PD law toward `targets`; writes the applied (actuator)
+    /// torques. Joint limits then hold as hard stops (see [`Self::enforce_limits`]).
     pub fn step(&mut self, targets: &[f32], q: &mut [f32], qd: &mut [f32], tau: &mut [f32]) {
         self.joint_state(q, qd);
         for k in 0..tau.len() {
@@ -363,6 +426,96 @@ impl RobotWorld {
             self.world.bodies[self.bodies[parent]].add_torque(-t, false);
         }
         self.world.step();
+        if self.backend == JointBackend::Impulse {
+            self.enforce_limits();
+        }
+    }
+
+    /// Moment of inertia of `bodies` about the line through `pivot` along unit `axis`.
+    fn inertia_about(
+        &self,
+        bodies: impl Iterator<Item = usize>,
+        pivot: Vector,
+        axis: Vector,
+    ) -> f32 {
+        bodies
+            .map(|b| {
+                let rb = &self.world.bodies[self.bodies[b]];
+                let (m, com, ic) = &self.inertia[b];
+                let rot = *rb.rotation();
+                let a = rot.inverse() * axis;
+                let r = rb.position() * *com - pivot;
+                a.dot(*ic * a) + m * r.cross(axis).length_squared()
+            })
+            .sum()
+    }
+
+    /// Turns `bodies` rigidly by `angle` about the line through `pivot` along `axis`, and
+    /// adds the angular velocity `dw` about that line.
+    fn turn(&mut self, bodies: &[usize], pivot: Vector, axis: Vector, angle: f32, dw: f32) {
+        let r = Rotation::from_axis_angle(axis, angle);
+        for &b in bodies {
+            let com = self.inertia[b].1;
+            let rb = &mut self.world.bodies[self.bodies[b]];
+            let p = *rb.position();
+            let moved = Pose::from_parts(pivot + r * (p.translation - pivot), r * p.rotation);
+            rb.set_position(moved, false);
+            let w = dw * axis;
+            let v = rb.linvel() + w.cross(moved * com - pivot);
+            rb.set_linvel(v, false);
+            rb.set_angvel(rb.angvel() + w, false);
+        }
+    }
+
+    /// Hard joint stops for the impulse backend: after a physics step, a joint past its
+    /// URDF limit is put back on it, the two sides turned about the joint axis in inverse
+    /// proportion to their inertia about it (so the robot's angular momentum about the axis
+    /// is kept), and the relative velocity carrying it further out is removed the same way
+    /// (a perfectly inelastic stop). Joints are visited parents first; turning one side of
+    /// a joint rigidly leaves every other joint angle unchanged.
+    fn enforce_limits(&mut self) {
+        for k in 0..self.joints.len() {
+            let Some([lo, hi]) = self.limits[k] else {
+                continue;
+            };
+            let (parent, child, _) = self.joints[k];
+            let (f1, f2) = self.frames[k];
+            let (p, c) = (
+                &self.world.bodies[self.bodies[parent]],
+                &self.world.bodies[self.bodies[child]],
+            );
+            let r1 = *p.rotation() * f1.rotation;
+            let rel = r1.inverse() * (*c.rotation() * f2.rotation);
+            let rel = if rel.w < 0.0 { -rel } else { rel };
+            let q = 2.0 * rel.x.atan2(rel.w);
+            if (lo..=hi).contains(&q) {
+                continue;
+            }
+            let axis = r1 * Vector::X;
+            let pivot = *p.position() * f1.translation;
+            let w_rel = (c.angvel() - p.angvel()).dot(axis);
+            let sub = std::mem::take(&mut self.subtrees[k]);
+            let rest: Vec<usize> = (0..self.bodies.len())
+                .filter(|b| !sub.contains(b))
+                .collect();
+            let ic = self
+                .inertia_about(sub.iter().copied(), pivot, axis)
+                .max(1e-9);
+            let ip = self
+                .inertia_about(rest.iter().copied(), pivot, axis)
+                .max(1e-9);
+            let (sc, sp) = (ip / (ic + ip), ic / (ic + ip));
+            let dq = q.clamp(lo, hi) - q;
+            // Remove only the part of the relative velocity that goes further out.
+            let out = if q > hi {
+                w_rel.max(0.0)
+            } else {
+                w_rel.min(0.0)
+            };
+            self.turn(&sub, pivot, axis, dq * sc, -out * sc);
+            self.turn(&rest, pivot, axis, -dq * sp, out * sp);
+            self.subtrees[k] = sub;
+        }
     }
 
     /// Base pose and velocities.
@@ -388,6 +541,29 @@ impl RobotWorld {
     pub fn foot_contacts(&self, out: &mut [bool]) {
         for (o, f) in out.iter_mut().zip(&self.feet) {
             *o = self.touching(*f);
+        }
+    }
+
+    /// Number of leg shapes (thighs, shanks) touching the terrain: legged_gym's
+    /// `collision` term.
+    pub fn leg_contacts(&self) -> usize {
+        self.legs.iter().filter(|c| self.touching(**c)).count()
+    }
+
+    /// Joint position limits in action order (`None`: unlimited).
+    pub fn joint_limits(&self) -> &[Option<[f32; 2]>] {
+        &self.limits
+    }
+
+    /// Moves the whole robot by `(dx, dy)`, keeping every velocity: on a terrain that
+    /// repeats every `|dx|`, `|dy|` metres nothing the robot feels changes.
+    pub fn shift(&mut self, dx: f32, dy: f32) {
+        let d = Vector::new(dx, dy, 0.0);
+        for h in &self.bodies {
+            let rb = &mut self.world.bodies[*h];
+            let mut p = *rb.position();
+            p.translation += d;
+            rb.set_position(p, false);
         }
     }
 

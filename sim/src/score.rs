@@ -95,8 +95,12 @@ impl ScoreAccumulator {
     }
 }
 
-/// Averages robots' accumulators into a cell's score. `mass` is the robot's mass (kg).
-pub fn summarize(robots: &[ScoreAccumulator], mass: f32) -> GaitScore {
+/// Averages robots' accumulators into a cell's score. `mass` is the robot's mass (kg);
+/// `episode_steps` is the evaluation episode's full length T: the track, effort and tilt
+/// sums are divided by T for every robot, so a robot that fell at step k gets nothing for
+/// steps k..T (DESIGN.md, "Falls"). The velocity error, torque and cost of transport are
+/// means over the steps each robot walked.
+pub fn summarize(robots: &[ScoreAccumulator], mass: f32, episode_steps: u64) -> GaitScore {
     let n = robots.len().max(1) as f64;
     let mut s = GaitScore {
         robots: robots.len(),
@@ -105,10 +109,11 @@ pub fn summarize(robots: &[ScoreAccumulator], mass: f32) -> GaitScore {
     let (mut power, mut speed) = (0.0, 0.0);
     for r in robots {
         let t = r.steps.max(1) as f64;
-        s.score += r.j() / n;
-        s.track += r.track / t / n;
-        s.effort += r.effort / t / n;
-        s.tilt += r.tilt / t / n;
+        let full = episode_steps.max(r.steps).max(1) as f64;
+        s.score += ((r.track - r.effort - r.tilt) / full + r.progress) / n;
+        s.track += r.track / full / n;
+        s.effort += r.effort / full / n;
+        s.tilt += r.tilt / full / n;
         s.progress += r.progress / n;
         s.fall_rate += if r.fell { 1.0 / n } else { 0.0 };
         s.mean_vel_error += r.vel_err / t / n;
@@ -155,7 +160,7 @@ mod tests {
         assert!((a.j() - (track - effort - tilt + progress)).abs() < 1e-6);
         let mut b = a.clone();
         b.fell = true;
-        let s = summarize(&[a, b], 25.0);
+        let s = summarize(&[a.clone(), b], 25.0, 2);
         assert!((s.track - track).abs() < 1e-6);
         assert!((s.effort - effort).abs() < 1e-6);
         assert!((s.tilt - tilt).abs() < 1e-6);
@@ -165,5 +170,34 @@ mod tests {
         assert!((s.mean_abs_torque - 10.0).abs() < 1e-9);
         assert!((s.cost_of_transport - 50.0 / (25.0 * 9.81 * 0.75)).abs() < 1e-6);
         assert_eq!(s.robots, 2);
+        assert!((s.score - a.j()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_fall_forfeits_the_rest_of_the_episode() {
+        let step = ScoreStep {
+            cmd: [1.0, 0.0],
+            vel: [1.0, 0.0],
+            torque_norm: 0.0,
+            mean_abs_torque: 0.0,
+            power: 0.0,
+            gravity_xy: [0.0, 0.0],
+            displacement: [0.0, 0.0],
+        };
+        let mut walked = ScoreAccumulator::default();
+        for _ in 0..100 {
+            walked.add(&step, 0.25, 80.0, 12);
+        }
+        let mut fell = ScoreAccumulator::default();
+        for _ in 0..25 {
+            fell.add(&step, 0.25, 80.0, 12);
+        }
+        fell.fell = true;
+        let s = summarize(&[walked, fell], 25.0, 100);
+        // Perfect tracking: 1 for the walker, 25/100 for the robot that fell at step 25.
+        assert!((s.track - (1.0 + 0.25) / 2.0).abs() < 1e-9, "{}", s.track);
+        assert!((s.score - s.track).abs() < 1e-9);
+        assert!((s.fall_rate - 0.5).abs() < 1e-12);
+        assert!(s.mean_vel_error.abs() < 1e-9);
     }
 }

@@ -3,7 +3,11 @@
 //!
 //! Every robot lives in its own world on one square tile made of 3 x 3 sub-tiles of
 //! [`SUB_TILE`] metres of the same level; it spawns in the middle of the centre sub-tile.
-//! Tiles are generated once per (kind, level, variant) and shared by every world.
+//! Every kind repeats every [`SUB_TILE`] metres, so a robot that walks more than one
+//! sub-tile from the centre is moved back by one period without feeling it (the agent does
+//! this): the ground is unbounded and no episode ends at an edge. Tiles are generated once
+//! per (kind, level, variant), heightfield included, and shared by every world; training
+//! and evaluation draw their random fields from disjoint seeds ([`TerrainUse`]).
 
 use std::fmt;
 use std::str::FromStr;
@@ -161,7 +165,6 @@ impl HeightGrid {
 }
 
 /// One generated tile.
-#[derive(Debug)]
 pub struct Tile {
     /// Kind of terrain.
     pub kind: TerrainKind,
@@ -169,9 +172,55 @@ pub struct Tile {
     pub level: u8,
     /// The heights; `None` for flat ground (a plane at z = 0).
     pub grid: Option<HeightGrid>,
+    /// The heightfield collider shape built from `grid` (shared by every world on the tile),
+    /// in parry's frame: local y up, turned to world z by the collider's rotation.
+    pub collider: Option<rapier3d::prelude::SharedShape>,
+}
+
+impl fmt::Debug for Tile {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Tile")
+            .field("kind", &self.kind)
+            .field("level", &self.level)
+            .field("n", &self.grid.as_ref().map(|g| g.n))
+            .finish()
+    }
+}
+
+/// Which random fields a terrain set draws: training and evaluation use disjoint seeds, so
+/// that a score measures walking on ground the policy has not seen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TerrainUse {
+    /// Training tiles (variants 0 and 1).
+    Train,
+    /// Evaluation tiles (variants 2 and 3).
+    Eval,
+}
+
+fn heightfield(g: &HeightGrid) -> rapier3d::prelude::SharedShape {
+    // parry's heightfield lies in its local xz plane with y up; the collider turns it so
+    // that local y is world z. Row i then runs along world -y.
+    let n = g.n;
+    let heights = rapier3d::parry::utils::Array2::from_fn(n, n, |i, j| g.h[j * n + (n - 1 - i)]);
+    let side = g.side();
+    rapier3d::prelude::SharedShape::heightfield(
+        heights,
+        rapier3d::math::Vector::new(side, 1.0, side),
+    )
 }
 
 impl Tile {
+    /// A tile of these heights (`None`: flat ground), its collider built once.
+    pub fn new(kind: TerrainKind, level: u8, grid: Option<HeightGrid>) -> Tile {
+        let collider = grid.as_ref().map(heightfield);
+        Tile {
+            kind,
+            level,
+            grid,
+            collider,
+        }
+    }
+
     /// Terrain height at (x, y).
     pub fn height(&self, x: f32, y: f32) -> f32 {
         self.grid.as_ref().map_or(0.0, |g| g.height(x, y))
@@ -191,14 +240,21 @@ pub fn generate(kind: TerrainKind, level: u8, variant: u32) -> Tile {
     let grid = match kind {
         TerrainKind::Flat => None,
         TerrainKind::Rough => {
-            // legged_gym: uniform noise on a coarser grid (downsampled_scale 0.2 m), upsampled.
+            // legged_gym: uniform noise on a coarser grid (downsampled_scale 0.2 m), upsampled;
+            // here one period of SUB_TILE metres repeated over the tile.
             let mut rng =
                 ChaCha8Rng::seed_from_u64(0x7e11a1 ^ ((level as u64) << 8) ^ variant as u64);
+            let per = (SUB_TILE / 0.2).round() as usize;
+            let period: Vec<f32> = (0..per * per)
+                .map(|_| rng.random_range(-p.roughness..=p.roughness))
+                .collect();
+            let reps = (TILE / SUB_TILE).round() as usize;
+            let n = per * reps + 1;
             let coarse = HeightGrid {
-                n: (TILE / 0.2) as usize + 1,
+                n,
                 scale: 0.2,
-                h: (0..((TILE / 0.2) as usize + 1).pow(2))
-                    .map(|_| rng.random_range(-p.roughness..=p.roughness))
+                h: (0..n * n)
+                    .map(|k| period[(k / n) % per * per + (k % n) % per])
                     .collect(),
             };
             let mut g = HeightGrid::from_fn(TILE, HORIZONTAL_SCALE, |x, y| coarse.height(x, y));
@@ -221,7 +277,7 @@ pub fn generate(kind: TerrainKind, level: u8, variant: u32) -> Tile {
             sign * d.min((SUB_TILE - PLATFORM) / 2.0) * p.slope
         })),
     };
-    Tile { kind, level, grid }
+    Tile::new(kind, level, grid)
 }
 
 /// Every tile of a kind, by level and variant, generated once and shared.
@@ -232,13 +288,18 @@ pub struct TerrainSet {
 }
 
 impl TerrainSet {
-    /// Generates the tiles of `kind` (two variants: up/down, or two random fields).
-    pub fn new(kind: TerrainKind) -> TerrainSet {
+    /// Generates the tiles of `kind` (two variants: up/down, or two random fields) for
+    /// training or for evaluation (random fields from disjoint seeds).
+    pub fn new(kind: TerrainKind, usage: TerrainUse) -> TerrainSet {
         let variants = if kind == TerrainKind::Flat { 1 } else { 2 };
+        let first = match usage {
+            TerrainUse::Train => 0,
+            TerrainUse::Eval => 2,
+        };
         TerrainSet {
             tiles: (0..LEVELS)
                 .map(|l| {
-                    (0..variants)
+                    (first..first + variants)
                         .map(|v| Arc::new(generate(kind, l, v)))
                         .collect()
                 })
@@ -294,6 +355,41 @@ mod tests {
         let p = LevelParams::at(0);
         assert!(ga.h.iter().all(|h| h.abs() <= p.roughness + 0.003));
         assert!(ga.h.iter().any(|h| *h != 0.0));
+    }
+
+    #[test]
+    fn every_kind_repeats_every_sub_tile() {
+        for kind in [TerrainKind::Rough, TerrainKind::Stairs, TerrainKind::Slopes] {
+            let t = generate(kind, 6, 1);
+            for (x, y) in [(0.3, -1.7), (2.05, 3.3), (-3.9, 0.0)] {
+                let h = t.height(x, y);
+                for (dx, dy) in [(SUB_TILE, 0.0), (0.0, -SUB_TILE), (-SUB_TILE, SUB_TILE)] {
+                    let h2 = t.height(x + dx, y + dy);
+                    assert!((h - h2).abs() < 1e-4, "{kind} at ({x}, {y}): {h} vs {h2}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn evaluation_tiles_are_disjoint_from_training_tiles() {
+        let train = TerrainSet::new(TerrainKind::Rough, TerrainUse::Train);
+        let eval = TerrainSet::new(TerrainKind::Rough, TerrainUse::Eval);
+        for level in 0..LEVELS as usize {
+            for e in &eval.tiles[level] {
+                let eh = &e.grid.as_ref().unwrap().h;
+                for t in &train.tiles[level] {
+                    let th = &t.grid.as_ref().unwrap().h;
+                    let same = eh.iter().zip(th).filter(|(a, b)| a == b).count();
+                    // Quantised uniform noise agrees by chance on a few per cent of points.
+                    assert!(
+                        (same as f64) < 0.2 * eh.len() as f64,
+                        "level {level}: {same} of {} heights shared",
+                        eh.len()
+                    );
+                }
+            }
+        }
     }
 
     #[test]

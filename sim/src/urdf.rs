@@ -34,7 +34,8 @@ pub struct LinkModel {
     pub com: Vector,
     /// Inertia tensor about the centre of mass, in the link frame (row-major 3x3).
     pub inertia: [[f32; 3]; 3],
-    /// Collision primitives with their pose in the link frame.
+    /// Collision primitives with their pose in the link frame (the feet's spheres are not
+    /// among them: [`RobotModel::feet`] holds those).
     pub shapes: Vec<(Pose, Shape)>,
 }
 
@@ -51,6 +52,9 @@ pub struct JointModel {
     pub origin: Pose,
     /// Unit rotation axis in the joint (= child) frame.
     pub axis: Vector,
+    /// Position limits `[lower, upper]` (rad) from the URDF's `<limit>`, enforced by the
+    /// simulation; `None` when the URDF gives none (lower = upper = 0, or a continuous joint).
+    pub limits: Option<[f32; 2]>,
 }
 
 /// A quadruped ready to be built into a rapier world.
@@ -326,6 +330,9 @@ impl RobotModel {
                     return Err(err(format!("link {}", l.name), "negative mass".into()));
                 }
                 parts.push((l.inertial.mass.value as f32, ip.translation, world));
+                if preset.feet.contains(&l.name) {
+                    continue;
+                }
                 for c in &l.collision {
                     shapes.push((lp * pose(&c.origin), shape(path, &l.name, &c.geometry)?));
                 }
@@ -353,12 +360,34 @@ impl RobotModel {
                 .find(|j| &j.name == name)
                 .expect("checked above");
             let (pb, pp) = body_of[j.parent.link.as_str()];
+            let (lo, hi) = (j.limit.lower as f32, j.limit.upper as f32);
+            let limits = if lo == 0.0 && hi == 0.0 {
+                None
+            } else if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return Err(err(
+                    format!("joint {name}"),
+                    format!("limit lower {lo} must be below upper {hi}"),
+                ));
+            } else {
+                let q0 = preset.default_pose[k];
+                if !(lo..=hi).contains(&q0) {
+                    return Err(err(
+                        format!("joint {name}"),
+                        format!(
+                            "the preset's default pose {q0} rad lies outside the limits [{lo}, {hi}]; \
+                             widen the limits or change default_pose"
+                        ),
+                    ));
+                }
+                Some([lo, hi])
+            };
             joints.push(JointModel {
                 name: name.clone(),
                 parent: pb,
                 child: k + 1,
                 origin: pp * pose(&j.origin),
                 axis: v3(&j.axis.xyz).normalize(),
+                limits,
             });
         }
         let mut feet = Vec::with_capacity(4);

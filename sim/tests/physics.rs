@@ -8,6 +8,7 @@ fn env(robot: &str, terrain: TerrainKind, n: usize, seed: u64) -> VecEnv {
     VecEnv::new(
         &p,
         EnvConfig {
+            mode: gaitsweep_sim::EnvMode::Eval,
             terrain,
             num_envs: n,
             w1: 7.0,
@@ -134,11 +135,11 @@ fn the_height_scan_reads_a_known_heightfield() {
     use gaitsweep_sim::terrain::{HeightGrid, Tile};
     let p = Preset::load("anymal").unwrap();
     // A plane h = 0.1 x + 0.05 y: bilinear interpolation reproduces it exactly.
-    let tile = Tile {
-        kind: TerrainKind::Rough,
-        level: 0,
-        grid: Some(HeightGrid::from_fn(24.0, 0.1, |x, y| 0.1 * x + 0.05 * y)),
-    };
+    let tile = Tile::new(
+        TerrainKind::Rough,
+        0,
+        Some(HeightGrid::from_fn(24.0, 0.1, |x, y| 0.1 * x + 0.05 * y)),
+    );
     for yaw in [0.0f32, std::f32::consts::FRAC_PI_2, 0.7] {
         let base = [1.0f32, -2.0, 0.6];
         let mut out = vec![0.0; p.scan_len()];
@@ -170,6 +171,7 @@ fn the_physics_terrain_matches_the_tile_heights() {
         let mut e = VecEnv::new(
             &p,
             EnvConfig {
+                mode: gaitsweep_sim::EnvMode::Eval,
                 terrain,
                 num_envs: 2,
                 w1: 7.0,

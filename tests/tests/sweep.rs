@@ -112,7 +112,7 @@ async fn two_workers_finish_a_2x2_sweep() {
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
-        out.status.success() && text.contains('*'),
+        out.status.success() && text.contains('*') && text.contains("fall rate"),
         "show output: {text}"
     );
     let model = tmp.path().join("best.safetensors");

@@ -303,6 +303,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         let env = VecEnv::new(
             &preset,
             EnvConfig {
+                mode: gaitsweep_sim::EnvMode::Train,
                 terrain: *terrain,
                 num_envs: agents,
                 w1: w1 as f32,
@@ -319,7 +320,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
             tch::Device::Cpu,
             1,
         );
-        let mut runner = Runner::new(SimEnv { env }, ppo, 1, 0, u32::MAX, "bench".into());
+        let mut runner = Runner::new(SimEnv { env }, ppo, 1, 0, "bench".into());
         runner.run_epoch()?;
         let (mut sim, mut inf, mut upd, mut samples) = (0.0, 0.0, 0.0, 0u64);
         let t = Instant::now();

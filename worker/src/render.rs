@@ -101,6 +101,7 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
     let mut env = VecEnv::new(
         &preset,
         EnvConfig {
+            mode: gaitsweep_sim::EnvMode::Eval,
             terrain,
             num_envs: 1,
             w1: meta.w1 as f32,

@@ -195,6 +195,10 @@ pub fn epoch_metrics(s: &EpochStats, wall_seconds: f64) -> EpochMetrics {
         v.insert(format!("reward/{name}"), *mean);
     }
     v.insert("mean_step_reward".into(), s.mean_step_reward);
+    if let Some((mean, max)) = s.levels {
+        v.insert("curriculum/mean_level".into(), mean);
+        v.insert("curriculum/max_level".into(), max);
+    }
     if let Some(r) = s.mean_return {
         v.insert("mean_return".into(), r);
     }
@@ -245,12 +249,12 @@ pub fn train_cell(cfg: &CellRunConfig, observer: &mut dyn TrainObserver) -> Resu
 /// Trains one cell: resumes from `cfg.resume_from` if set, writes a checkpoint every
 /// `checkpoint_every` epochs and at the end, evaluates and writes `score.json`.
 ///
-/// Every multiple of `checkpoint_every` is a boundary where the simulation and the
-/// trainer's generator are reseeded from `(seed, epoch)`; resuming from a checkpoint at a
-/// boundary therefore ends bit-identical to the uninterrupted run (same machine, same
-/// libtorch thread count). A checkpoint off a boundary (the final one, or one written on a
-/// stop request) resumes correctly but not bit-identically. Curriculum levels are saved
-/// and restored.
+/// Checkpoints never change training: the robots are reset (from `(seed, epoch)`, with
+/// staggered episode starts) only when a run starts or resumes, and a run with any
+/// `checkpoint_every` trains exactly as one with a single final checkpoint (same machine,
+/// same libtorch thread count). A resumed run restores the networks, optimiser, observation
+/// statistics and curriculum levels, but its robots start new episodes, as legged_gym's
+/// resume does, so it does not replay the uninterrupted run bit for bit.
 pub fn train_cell_with(
     cfg: &CellRunConfig,
     opts: &TrainOptions,
@@ -268,6 +272,7 @@ pub fn train_cell_with(
     let env = VecEnv::new(
         &preset,
         EnvConfig {
+            mode: gaitsweep_sim::EnvMode::Train,
             terrain: cfg.terrain,
             num_envs: cfg.agents,
             w1: cfg.w1 as f32,
@@ -295,7 +300,7 @@ pub fn train_cell_with(
         ppo: params.clone(),
         normalizer: NormalizerMeta { count: 0, mean: vec![], var: vec![], eps: 0.0, clip: 0.0 },
         optimizer: OptimizerMeta { kind: "adam".into(), learning_rate: 0.0, step: 0, betas: [0.0; 2], eps: 0.0 },
-        rng: RngMeta { scheme: "sim and trainer generator reseeded from boundary_seed(seed, epoch) at every checkpoint".into(), resume_seed: 0 },
+        rng: RngMeta { scheme: "sim and trainer generator seeded from boundary_seed(seed, epoch) at the start and at each resumption; checkpoints never reset robots".into(), resume_seed: 0 },
         levels: Vec::new(),
     };
 
@@ -320,14 +325,7 @@ pub fn train_cell_with(
         }
         tracing::info!(cell = %label, checkpoint = %path.display(), epoch = start, "resumed");
     }
-    let mut runner = Runner::new(
-        sim,
-        ppo,
-        cfg.seed,
-        start,
-        cfg.checkpoint_every,
-        label.clone(),
-    );
+    let mut runner = Runner::new(sim, ppo, cfg.seed, start, label.clone());
     let t0 = Instant::now();
     let save = |runner: &Runner<SimEnv>, meta: &mut CheckpointMeta| -> Result<PathBuf> {
         meta.epoch = runner.epoch;

@@ -33,7 +33,7 @@ fn ppo_learns_point_mass() {
     let seed = 7;
     let ppo = Ppo::new(4, 2, toy_params(), Device::Cpu, seed);
     let before = eval_return(&ppo);
-    let mut runner = Runner::new(PointMass::new(128, seed), ppo, seed, 0, 50, "toy".into());
+    let mut runner = Runner::new(PointMass::new(128, seed), ppo, seed, 0, "toy".into());
     let t = Instant::now();
     let mut last = None;
     for _ in 0..60 {
@@ -102,7 +102,7 @@ fn nan_observation_stops_the_cell_with_its_name() {
         obs: vec![],
     };
     let ppo = Ppo::new(4, 2, toy_params(), Device::Cpu, 1);
-    let mut runner = Runner::new(env, ppo, 1, 0, 10, "(w1=2, w2=-6)".into());
+    let mut runner = Runner::new(env, ppo, 1, 0, "(w1=2, w2=-6)".into());
     runner.run_epoch().unwrap();
     runner.run_epoch().unwrap();
     let e = runner.run_epoch().unwrap_err().to_string();

@@ -1,5 +1,5 @@
-//! A short `train_cell` on the real simulator: metrics, checkpoints, a gait score, and a
-//! resumed run ending bit-identical to an uninterrupted one.
+//! A short `train_cell` on the real simulator: metrics, checkpoints, a gait score, a
+//! resumed run, and checkpoints that do not change training.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -82,6 +82,8 @@ fn train_cell_on_simulator_and_resume() {
         "time/inference",
         "time/update",
         "mean_step_reward",
+        "curriculum/mean_level",
+        "curriculum/max_level",
     ] {
         assert!(
             m.get(key).is_some_and(|v| v.is_finite()),
@@ -148,9 +150,16 @@ fn train_cell_on_simulator_and_resume() {
         "epoch count must continue"
     );
     assert_eq!(out2.epochs, 4);
+    assert!(out2.score.score.is_finite());
+
+    // Checkpoints never change training: the same run with only its final checkpoint ends
+    // with the same weights, bit for bit (it used to reset every robot at each checkpoint).
+    let mut once = cfg(&dir.path().join("once"), 4, None);
+    once.checkpoint_every = 4;
+    let out3 = train_cell(&once, &mut Collect::default()).unwrap();
     assert!(
-        weights(&out.final_checkpoint) == weights(&out2.final_checkpoint),
-        "resumed run differs from the uninterrupted one"
+        weights(&out.final_checkpoint) == weights(&out3.final_checkpoint),
+        "a run with a checkpoint every 2 epochs differs from one with only the final checkpoint"
     );
 
     let mut wrong = cfg(

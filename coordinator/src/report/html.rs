@@ -149,6 +149,12 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         );
         fig(
             &mut o,
+            &format!("fall_rate_{s}"),
+            &format!("fall rate of each cell's evaluation on {terrain} (lower is better)"),
+            "",
+        );
+        fig(
+            &mut o,
             &format!("surface_{s}"),
             &format!("gait score surface on {terrain}"),
             "",

@@ -807,6 +807,27 @@ pub fn draw_all(d: &ReportData, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
             integer: false,
         };
         files.extend(save(&heat, out, &format!("score_{s}"))?);
+        let falls = Heatmap {
+            title: format!("Fall rate on {terrain}: {who}"),
+            subtitle:
+                "fraction of the evaluation robots that fell; lower is better; a score is only \
+                       comparable between cells that walk"
+                    .into(),
+            bar_label: "fall rate".into(),
+            w1: &d.w1_values,
+            w2: &d.w2_values,
+            values: d.grid(t, None, |c| {
+                c.score
+                    .as_ref()
+                    .map(|s| s.fall_rate)
+                    .filter(|v| v.is_finite())
+            }),
+            notes: notes(d, t),
+            better: Better::Lower,
+            marks: vec![],
+            integer: false,
+        };
+        files.extend(save(&falls, out, &format!("fall_rate_{s}"))?);
         let surf = Surface {
             title: format!("Gait score surface on {terrain}: {who}"),
             subtitle: "x: log10 torque weight w2, depth: w1 (tracking weight), height: gait score"

@@ -30,6 +30,9 @@ struct Args {
     /// Skip rapier's default solver settings (4 iterations).
     #[arg(long)]
     no_default: bool,
+    /// Also run the preset without leg colliders (base and feet only).
+    #[arg(long)]
+    no_legs: bool,
     /// Extra settings to compare: backend:iterations:pgs, e.g. impulse:1:4.
     #[arg(long, value_delimiter = ',', value_parser = parse_setting)]
     extra: Vec<(String, gaitsweep_sim::robot::JointBackend, usize, usize)>,
@@ -66,6 +69,7 @@ fn run(p: &Preset, terrain: TerrainKind, n: usize, steps: usize, threads: usize)
         let mut env = VecEnv::new(
             p,
             EnvConfig {
+                mode: gaitsweep_sim::EnvMode::Train,
                 terrain,
                 num_envs: n,
                 w1: 7.0,
@@ -105,6 +109,13 @@ fn main() -> Result<()> {
     for robot in &a.robots {
         let preset = Preset::load(robot)?;
         let mut settings = vec![("preset", preset.clone())];
+        if a.no_legs {
+            // The same preset with only the base and the feet touching the terrain: what the
+            // thigh and shank colliders cost.
+            let mut d = preset.clone();
+            d.control.leg_collisions = false;
+            settings.push(("preset, no leg colliders", d));
+        }
         for (label, backend, iters, pgs) in &a.extra {
             let mut d = preset.clone();
             d.control.joints = *backend;

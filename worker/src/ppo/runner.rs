@@ -39,6 +39,9 @@ pub struct EpochStats {
     pub update_seconds: f64,
     /// Robot-steps simulated.
     pub samples: u64,
+    /// Mean and largest terrain level of the robots after the epoch (legged_gym's
+    /// `Episode/terrain_level`).
+    pub levels: Option<(f64, f64)>,
 }
 
 impl EpochStats {
@@ -49,8 +52,8 @@ impl EpochStats {
     }
 }
 
-/// Seed of the reset at checkpoint boundary `epoch` (splitmix64 of seed and epoch), so
-/// that a run resumed there replays exactly what an uninterrupted run does.
+/// Seed of the reset at the start of a run (epoch 0) or of its resumption at `epoch`
+/// (splitmix64 of seed and epoch).
 pub fn boundary_seed(seed: u64, epoch: u32) -> u64 {
     let mut z = seed ^ (u64::from(epoch)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
     z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
@@ -69,9 +72,6 @@ pub struct Runner<E: VecEnvLike> {
     pub seed: u64,
     /// Epochs completed.
     pub epoch: u32,
-    /// Every this many epochs the environment and libtorch are reseeded (checkpoints are
-    /// written there); a resumed run also reseeds at its first epoch.
-    pub reseed_every: u32,
     /// Names the cell in errors, e.g. `(w1=2, w2=-6)`.
     pub label: String,
     needs_reseed: bool,
@@ -84,15 +84,17 @@ pub struct Runner<E: VecEnvLike> {
 }
 
 impl<E: VecEnvLike> Runner<E> {
-    /// Wraps an environment and a learner whose `epoch` epochs are already done.
-    pub fn new(env: E, ppo: Ppo, seed: u64, epoch: u32, reseed_every: u32, label: String) -> Self {
+    /// Wraps an environment and a learner whose `epoch` epochs are already done. The
+    /// environment is reset once, at the first epoch run (from `boundary_seed(seed,
+    /// epoch)`), and never again by the runner: robots reset when their episodes end, so
+    /// writing checkpoints does not change training.
+    pub fn new(env: E, ppo: Ppo, seed: u64, epoch: u32, label: String) -> Self {
         let n = env.num_envs();
         Self {
             env,
             ppo,
             seed,
             epoch,
-            reseed_every: reseed_every.max(1),
             label,
             needs_reseed: true,
             rng: ChaCha8Rng::seed_from_u64(seed),
@@ -132,7 +134,7 @@ impl<E: VecEnvLike> Runner<E> {
     pub fn run_epoch(&mut self) -> Result<EpochStats> {
         let mut stats = EpochStats::default();
         let t0 = Instant::now();
-        if self.needs_reseed || self.epoch.is_multiple_of(self.reseed_every) {
+        if self.needs_reseed {
             // All randomness (action noise, mini-batch order) comes from this generator,
             // not libtorch's process-wide one, which other cells' threads also draw from.
             let s = boundary_seed(self.seed, self.epoch);
@@ -252,6 +254,12 @@ impl<E: VecEnvLike> Runner<E> {
             .zip(term_sums)
             .map(|(k, s)| (k, s / samples))
             .collect();
+        let levels = self.env.levels();
+        if !levels.is_empty() {
+            let mean = levels.iter().map(|&l| f64::from(l)).sum::<f64>() / levels.len() as f64;
+            let max = levels.iter().copied().max().map_or(0.0, f64::from);
+            stats.levels = Some((mean, max));
+        }
         if !self.finished.is_empty() {
             let k = self.finished.len() as f64;
             stats.mean_return = Some(self.finished.iter().map(|e| e.0).sum::<f64>() / k);
