@@ -264,6 +264,7 @@ impl Agent {
             dof_acc_sq,
             action_rate_sq,
             air_time,
+            gravity_xy: [grav_b.x, grav_b.y],
             leg_contacts: self.world.leg_contacts() as u32,
             dof_pos_out: reward::dof_pos_out(
                 &self.q,

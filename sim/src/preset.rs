@@ -131,6 +131,10 @@ pub struct RewardConfig {
     /// 0 for ANYmal).
     #[serde(default)]
     pub dof_pos_limits: f32,
+    /// Penalty on base tilt, |g_xy|² (legged_gym's `orientation`: 0 in its rough-terrain
+    /// configurations, 5 in the flat-ground ANYmal one).
+    #[serde(default)]
+    pub orientation: f32,
     /// Soft limits: this fraction of the URDF's range around its middle (legged_gym 1.0).
     #[serde(default = "one_f")]
     pub soft_dof_pos_limit: f32,
@@ -395,7 +399,8 @@ impl Preset {
         let file: PresetFile = merged
             .try_into()
             .map_err(|e| err(format!("invalid preset: {e}")))?;
-        let urdf_path = dir.join(&file.urdf);
+        // read_layers made it relative to the file that names it.
+        let urdf_path = PathBuf::from(&file.urdf);
         let urdf_bytes = std::fs::read(&urdf_path)
             .map_err(|e| err(format!("cannot read urdf {}: {e}", urdf_path.display())))?;
         let mut problems = Vec::new();

@@ -4,7 +4,7 @@
 use crate::preset::RewardConfig;
 
 /// Names of the reward terms, in the order of [`RewardTerms::values`].
-pub const TERM_NAMES: [&str; 11] = [
+pub const TERM_NAMES: [&str; 12] = [
     "tracking_lin_vel",
     "torques",
     "tracking_ang_vel",
@@ -15,11 +15,12 @@ pub const TERM_NAMES: [&str; 11] = [
     "feet_air_time",
     "collision",
     "dof_pos_limits",
+    "orientation",
     "termination",
 ];
 
 /// Index of the termination term, added after the clip at zero (legged_gym).
-const TERMINATION: usize = 10;
+const TERMINATION: usize = 11;
 
 /// What the reward reads of one robot after one policy step.
 #[derive(Debug, Clone, Default)]
@@ -44,6 +45,8 @@ pub struct RewardInput {
     /// Feet air time reward before weighting: sum over feet touching down this step of
     /// (air time - 0.5 s); zero when the command is below 0.1 m/s.
     pub air_time: f32,
+    /// Horizontal part of gravity in the base frame (0 when upright).
+    pub gravity_xy: [f32; 2],
     /// Leg shapes (thighs, shanks) touching the terrain.
     pub leg_contacts: u32,
     /// Sum over joints of how far each lies outside its soft position limits (rad).
@@ -65,7 +68,7 @@ pub struct GridWeights {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RewardTerms {
     /// Term values in [`TERM_NAMES`] order.
-    pub values: [f32; 11],
+    pub values: [f32; 12],
 }
 
 impl RewardTerms {
@@ -115,6 +118,7 @@ pub fn compute(inp: &RewardInput, w: GridWeights, r: &RewardConfig, dt: f32) -> 
         r.feet_air_time * inp.air_time,
         -r.collision * inp.leg_contacts as f32,
         -r.dof_pos_limits * inp.dof_pos_out,
+        -r.orientation * (inp.gravity_xy[0].powi(2) + inp.gravity_xy[1].powi(2)),
         if inp.fell { -r.termination } else { 0.0 },
     ];
     RewardTerms {
@@ -172,11 +176,13 @@ mod tests {
             air_time: 0.3,
             leg_contacts: 2,
             dof_pos_out: 0.25,
+            gravity_xy: [0.3, 0.4],
             fell: true,
         };
         let mut r = r;
         r.termination = 3.0;
         r.dof_pos_limits = 10.0;
+        r.orientation = 5.0;
         let w = GridWeights { w1: 7.0, w2: -6.0 };
         let dt = 0.02;
         let t = compute(&inp, w, &r, dt).values;
@@ -194,7 +200,8 @@ mod tests {
         close(t[7], 1.0 * 0.3 * 0.02);
         close(t[8], -1.0 * 2.0 * 0.02);
         close(t[9], -10.0 * 0.25 * 0.02);
-        close(t[10], -3.0 * 0.02);
+        close(t[10], -5.0 * 0.25 * 0.02);
+        close(t[11], -3.0 * 0.02);
     }
 
     #[test]
