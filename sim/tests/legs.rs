@@ -193,3 +193,85 @@ fn training_staggers_episode_starts_and_evaluation_does_not() {
     let eval = env(EnvMode::Eval, 8);
     assert!(eval.episode_steps().iter().all(|&s| s == 0));
 }
+
+/// A quadruped with other link and joint names, limits and leg shapes (boxes and
+/// capsules) loads with only a preset that names them, and walks in a VecEnv.
+#[test]
+fn a_quadruped_with_other_names_and_shapes_loads_with_only_a_preset() {
+    let dir = tempfile::tempdir().unwrap();
+    let inertial = |m: f32| {
+        format!(
+            r#"<inertial><origin xyz="0 0 -0.1" rpy="0 0 0"/><mass value="{m}"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.005"/></inertial>"#
+        )
+    };
+    let mut urdf = format!(
+        r#"<?xml version="1.0"?><robot name="other"><link name="trunk"><inertial><origin xyz="0 0 0" rpy="0 0 0"/><mass value="8"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.3" iyz="0" izz="0.3"/></inertial><collision><geometry><box size="0.6 0.3 0.15"/></geometry></collision></link>"#
+    );
+    let mut joints = Vec::new();
+    let mut feet = Vec::new();
+    for (leg, x, y) in [
+        ("FL", 0.25, 0.12),
+        ("FR", 0.25, -0.12),
+        ("RL", -0.25, 0.12),
+        ("RR", -0.25, -0.12),
+    ] {
+        for (j, parent, child, origin, axis, lim, shape) in [
+            ("hip", "trunk".to_string(), format!("{leg}_hip"), format!("{x} {y} 0"), "1 0 0", "-0.8 0.8", String::new()),
+            ("thigh", format!("{leg}_hip"), format!("{leg}_thigh"), "0 0 0".into(), "0 1 0", "-1.5 3.0",
+             r#"<collision><origin xyz="0 0 -0.1" rpy="0 0 0"/><geometry><box size="0.04 0.03 0.16"/></geometry></collision>"#.into()),
+            ("calf", format!("{leg}_thigh"), format!("{leg}_calf"), "0 0 -0.2".into(), "0 1 0", "-2.7 -0.6",
+             r#"<collision><origin xyz="0 0 -0.08" rpy="0 0 0"/><geometry><capsule radius="0.015" length="0.1"/></geometry></collision>"#.into()),
+        ] {
+            urdf += &format!("<link name=\"{child}\">{}{shape}</link>", inertial(0.6));
+            urdf += &format!(
+                r#"<joint name="{leg}_{j}_joint" type="revolute"><parent link="{parent}"/><child link="{child}"/><origin xyz="{origin}" rpy="0 0 0"/><axis xyz="{axis}"/><limit effort="30" velocity="20" lower="{}" upper="{}"/></joint>"#,
+                lim.split(' ').next().unwrap(),
+                lim.split(' ').nth(1).unwrap()
+            );
+            joints.push(format!("\"{leg}_{j}_joint\""));
+        }
+        urdf += &format!(
+            r#"<link name="{leg}_foot"><collision><geometry><sphere radius="0.02"/></geometry></collision></link><joint name="{leg}_foot_fixed" type="fixed"><parent link="{leg}_calf"/><child link="{leg}_foot"/><origin xyz="0 0 -0.2" rpy="0 0 0"/></joint>"#
+        );
+        feet.push(format!("\"{leg}_foot\""));
+    }
+    urdf += "</robot>";
+    std::fs::write(dir.path().join("other.urdf"), urdf).unwrap();
+    let base = gaitsweep_sim::preset::robots_dir().join("anymal");
+    std::fs::write(
+        dir.path().join("preset.toml"),
+        format!(
+            "base = {:?}\nname = \"other\"\nurdf = \"other.urdf\"\nbase_link = \"trunk\"\njoints = [{}]\nfeet = [{}]\n\
+             default_pose = [0.0, 0.8, -1.5, 0.0, 0.8, -1.5, 0.0, 0.8, -1.5, 0.0, 0.8, -1.5]\n\
+             nominal_base_height = 0.3\nspawn_height = 0.36\n[control]\nstiffness = 40.0\ndamping = 1.0\ntorque_limit = 30.0\n",
+            base.display().to_string(),
+            joints.join(", "),
+            feet.join(", ")
+        ),
+    )
+    .unwrap();
+    let p = Preset::load_from_dir(dir.path()).unwrap();
+    let model = RobotModel::load(&p).unwrap();
+    assert_eq!(model.joints[2].limits, Some([-2.7, -0.6]));
+    let legs: usize = model.links[1..].iter().map(|l| l.shapes.len()).sum();
+    assert_eq!(legs, 8, "a box thigh and a capsule calf per leg");
+    let mut e = VecEnv::new(
+        &p,
+        EnvConfig {
+            mode: EnvMode::Train,
+            terrain: TerrainKind::Rough,
+            num_envs: 4,
+            w1: 7.0,
+            w2: -6.0,
+            seed: 1,
+            difficulty: Some(2),
+            episode_seconds: 20.0,
+        },
+    )
+    .unwrap();
+    let zeros = vec![0.0; 4 * 12];
+    for _ in 0..50 {
+        let r = e.step(&zeros).unwrap();
+        assert!(r.obs.iter().all(|v| v.is_finite()));
+    }
+}
