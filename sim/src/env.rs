@@ -408,6 +408,12 @@ impl VecEnv {
         self.agents[i].world.ray_height(x, y)
     }
 
+    /// Distance robot `i` has walked from where its current episode began (m), counting
+    /// the moves back by the terrain's period.
+    pub fn walked(&self, i: usize) -> f32 {
+        self.agents[i].walked()
+    }
+
     /// Base position and yaw of robot `i`.
     pub fn base_pose(&self, i: usize) -> ([f32; 3], f32) {
         let b = self.agents[i].world.base();

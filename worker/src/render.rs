@@ -119,7 +119,7 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
         .max(1);
     let fps = (1.0 / (every as f32 * dt)).round().clamp(1.0, 100.0) as u16;
     let steps = (a.seconds / dt).round().max(1.0) as usize;
-    let start = env.base_pose(0).0;
+    let mut distance = 0.0f32;
     let mut obs = env.observations().to_vec();
     let mut actions = vec![0.0f32; env.act_dim()];
     let mut frames = vec![env.render_frame(0)];
@@ -131,6 +131,10 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
         let (done, timeout) = (r.dones[0], r.timeouts[0]);
         obs.copy_from_slice(r.obs);
         walked = step;
+        if !done {
+            // After a done the robot has already started a new episode.
+            distance = env.walked(0);
+        }
         if step % every as usize == 0 || done {
             frames.push(env.render_frame(0));
         }
@@ -139,8 +143,6 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
             break;
         }
     }
-    let end = env.base_pose(0).0;
-    let distance = ((end[0] - start[0]).powi(2) + (end[1] - start[1]).powi(2)).sqrt();
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(Error::io(format!("create {}", dir.display())))?;
     }
