@@ -383,19 +383,10 @@ impl RobotWorld {
     /// Joint positions and velocities in action order.
     pub fn joint_state(&self, q: &mut [f32], qd: &mut [f32]) {
         if self.backend == JointBackend::Impulse {
-            for (k, &(parent, child, _)) in self.joints.iter().enumerate() {
-                let (f1, f2) = &self.frames[k];
-                let (p, c) = (
-                    &self.world.bodies[self.bodies[parent]],
-                    &self.world.bodies[self.bodies[child]],
-                );
-                let r1 = *p.rotation() * f1.rotation;
-                let r2 = *c.rotation() * f2.rotation;
-                let rel = r1.inverse() * r2;
-                // Rotation about the frame's x: angle from the quaternion's x and w parts.
-                let rel = if rel.w < 0.0 { -rel } else { rel };
-                q[k] = 2.0 * rel.x.atan2(rel.w);
-                qd[k] = (c.angvel() - p.angvel()).dot(r1 * Vector::X);
+            for k in 0..self.joints.len() {
+                let (angle, axis, w_rel) = self.impulse_joint(k);
+                q[k] = angle;
+                qd[k] = w_rel.dot(axis);
             }
             return;
         }
@@ -429,6 +420,26 @@ impl RobotWorld {
         if self.backend == JointBackend::Impulse {
             self.enforce_limits();
         }
+    }
+
+    /// Angle of impulse joint `k`, its axis in the world, and the child's angular velocity
+    /// relative to the parent.
+    fn impulse_joint(&self, k: usize) -> (f32, Vector, Vector) {
+        let (parent, child, _) = self.joints[k];
+        let (f1, f2) = &self.frames[k];
+        let (p, c) = (
+            &self.world.bodies[self.bodies[parent]],
+            &self.world.bodies[self.bodies[child]],
+        );
+        let r1 = *p.rotation() * f1.rotation;
+        let rel = r1.inverse() * (*c.rotation() * f2.rotation);
+        // Rotation about the frame's x: angle from the quaternion's x and w parts.
+        let rel = if rel.w < 0.0 { -rel } else { rel };
+        (
+            2.0 * rel.x.atan2(rel.w),
+            r1 * Vector::X,
+            c.angvel() - p.angvel(),
+        )
     }
 
     /// Moment of inertia of `bodies` about the line through `pivot` along unit `axis`.
@@ -478,22 +489,13 @@ impl RobotWorld {
             let Some([lo, hi]) = self.limits[k] else {
                 continue;
             };
-            let (parent, child, _) = self.joints[k];
-            let (f1, f2) = self.frames[k];
-            let (p, c) = (
-                &self.world.bodies[self.bodies[parent]],
-                &self.world.bodies[self.bodies[child]],
-            );
-            let r1 = *p.rotation() * f1.rotation;
-            let rel = r1.inverse() * (*c.rotation() * f2.rotation);
-            let rel = if rel.w < 0.0 { -rel } else { rel };
-            let q = 2.0 * rel.x.atan2(rel.w);
+            let (q, axis, w_rel) = self.impulse_joint(k);
             if (lo..=hi).contains(&q) {
                 continue;
             }
-            let axis = r1 * Vector::X;
-            let pivot = *p.position() * f1.translation;
-            let w_rel = (c.angvel() - p.angvel()).dot(axis);
+            let w_rel = w_rel.dot(axis);
+            let (parent, f1) = (self.joints[k].0, self.frames[k].0);
+            let pivot = *self.world.bodies[self.bodies[parent]].position() * f1.translation;
             let sub = std::mem::take(&mut self.subtrees[k]);
             let rest: Vec<usize> = (0..self.bodies.len())
                 .filter(|b| !sub.contains(b))

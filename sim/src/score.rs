@@ -85,13 +85,19 @@ impl ScoreAccumulator {
         self.steps
     }
 
-    /// This robot's J.
+    /// This robot's J over its own steps.
     pub fn j(&self) -> f64 {
-        if self.steps == 0 {
+        self.j_over(self.steps)
+    }
+
+    /// This robot's J over an episode of `episode_steps` (at least its own): steps after a
+    /// fall count zero (DESIGN.md, "Falls").
+    pub fn j_over(&self, episode_steps: u64) -> f64 {
+        let t = episode_steps.max(self.steps);
+        if t == 0 {
             return 0.0;
         }
-        let t = self.steps as f64;
-        (self.track - self.effort - self.tilt) / t + self.progress
+        (self.track - self.effort - self.tilt) / t as f64 + self.progress
     }
 }
 
@@ -110,7 +116,7 @@ pub fn summarize(robots: &[ScoreAccumulator], mass: f32, episode_steps: u64) -> 
     for r in robots {
         let t = r.steps.max(1) as f64;
         let full = episode_steps.max(r.steps).max(1) as f64;
-        s.score += ((r.track - r.effort - r.tilt) / full + r.progress) / n;
+        s.score += r.j_over(episode_steps) / n;
         s.track += r.track / full / n;
         s.effort += r.effort / full / n;
         s.tilt += r.tilt / full / n;
