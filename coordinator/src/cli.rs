@@ -97,12 +97,18 @@ async fn connect(c: &Conn) -> anyhow::Result<Client> {
         }
         ep = ep.tls_config(tls)?;
     }
-    let channel = ep.connect().await.with_context(|| {
-        format!(
-            "cannot reach the coordinator at {}: is it running?",
-            c.connect
-        )
-    })?;
+    let channel = match ep.connect().await {
+        Ok(ch) => ch,
+        Err(e) => match gaitsweep_core::reason::tls_problem(&e) {
+            Some(tls) => anyhow::bail!("cannot connect to {}: {tls}", c.connect),
+            None => {
+                return Err(anyhow::Error::new(e).context(format!(
+                    "cannot reach the coordinator at {}: is it running?",
+                    c.connect
+                )))
+            }
+        },
+    };
     let token: Option<MetadataValue<_>> = match &c.token {
         Some(t) => Some(
             bearer(t)

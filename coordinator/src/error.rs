@@ -1,6 +1,6 @@
 //! The coordinator library's error type and its one mapping to gRPC status codes.
 
-use gaitsweep_core::{CellId, LeaseId, SweepId};
+use gaitsweep_core::{reason, CellId, LeaseId, SweepId};
 
 /// Errors of the coordinator library.
 #[derive(Debug, thiserror::Error)]
@@ -70,6 +70,20 @@ pub enum Error {
     BadRequest(String),
 }
 
+impl Error {
+    /// Whether the error is the disk (or SQLite's database) being full.
+    pub fn is_disk_full(&self) -> bool {
+        match self {
+            Error::Io { source, .. } => {
+                source.kind() == std::io::ErrorKind::StorageFull || source.raw_os_error() == Some(28)
+            }
+            // SQLITE_FULL (13): "database or disk is full".
+            Error::Db(sqlx::Error::Database(d)) => d.code().as_deref() == Some("13"),
+            _ => false,
+        }
+    }
+}
+
 /// Result alias of the coordinator library.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
@@ -89,8 +103,20 @@ impl From<Error> for tonic::Status {
             | Error::UnknownLease(_)
             | Error::UnknownCheckpoint(_)
             | Error::NothingPromoted(_) => Status::not_found(msg),
-            Error::UnknownWorker(_) | Error::CellClosed { .. } => Status::failed_precondition(msg),
+            Error::UnknownWorker(_) => {
+                reason::with(Status::failed_precondition(msg), reason::UNKNOWN_WORKER)
+            }
+            Error::CellClosed { .. } => Status::failed_precondition(msg),
             Error::TooLarge { .. } => Status::resource_exhausted(msg),
+            ref e if e.is_disk_full() => {
+                tracing::error!(error = %msg, "disk full");
+                reason::with(
+                    Status::resource_exhausted(format!(
+                        "the coordinator's disk is full ({msg}): free space in its data dir; workers retry"
+                    )),
+                    reason::DISK_FULL,
+                )
+            }
             Error::Db(_)
             | Error::Migrate(_)
             | Error::Server(_)
@@ -107,4 +133,36 @@ impl From<Error> for tonic::Status {
 pub(crate) fn io(context: impl Into<String>) -> impl FnOnce(std::io::Error) -> Error {
     let context = context.into();
     move |source| Error::Io { context, source }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Fault-injection finding: a full disk at upload reached the worker as an internal
+    /// error, logged as "coordinator unreachable".
+    #[test]
+    fn a_full_disk_is_resource_exhausted_with_its_reason() {
+        let e = io("write checkpoint")(std::io::Error::from_raw_os_error(28));
+        let s = tonic::Status::from(e);
+        assert_eq!(s.code(), tonic::Code::ResourceExhausted);
+        assert_eq!(reason::of(&s), Some(reason::DISK_FULL));
+        assert!(s.message().contains("disk is full"), "{}", s.message());
+        let too_large = tonic::Status::from(Error::TooLarge { size: 2, limit: 1 });
+        assert_eq!(too_large.code(), tonic::Code::ResourceExhausted);
+        assert_eq!(reason::of(&too_large), None, "a too-large upload is not retried");
+    }
+
+    /// The daemon recognises an unknown worker by a reason key, not by the message text.
+    #[test]
+    fn an_unknown_worker_carries_its_reason() {
+        let s = tonic::Status::from(Error::UnknownWorker("w-1".into()));
+        assert_eq!(s.code(), tonic::Code::FailedPrecondition);
+        assert_eq!(reason::of(&s), Some(reason::UNKNOWN_WORKER));
+        let closed = tonic::Status::from(Error::CellClosed {
+            cell: CellId(1),
+            state: "done".into(),
+        });
+        assert_eq!(reason::of(&closed), None);
+    }
 }

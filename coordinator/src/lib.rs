@@ -11,5 +11,6 @@ pub mod sched;
 pub mod serve;
 pub mod service;
 pub mod store;
+pub mod validate;
 
 pub use error::{Error, Result};

@@ -79,7 +79,7 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
             ),
             agents_per_cell: s.agents_per_cell as u32,
             epochs: s.epochs,
-            checkpoint_every: s.checkpoint_every,
+            checkpoint_every: Some(s.checkpoint_every),
             seed: s.seed,
             ppo_overrides: s.ppo_overrides.clone(),
             eval_robots: s.eval_robots as u32,

@@ -3,8 +3,10 @@
 //! generated gRPC code of `gaitsweep.v1`, and the one place that converts between them.
 
 pub mod convert;
+pub mod defaults;
 pub mod error;
 pub mod ids;
+pub mod reason;
 pub mod records;
 pub mod spec;
 pub mod state;

@@ -1,7 +1,7 @@
 //! The sweep spec (TOML or gRPC), its validation (every problem listed) and the grid
 //! expansion into cells.
 
-use crate::{Error, Result};
+use crate::{defaults, Error, Result};
 use gaitsweep_sim::TerrainKind;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -81,9 +81,10 @@ pub struct SweepSpec {
     pub agents_per_cell: Option<usize>,
     /// PPO epochs per cell.
     pub epochs: Option<u32>,
-    /// Checkpoint every this many epochs (0: only the final one).
+    /// Checkpoint every this many epochs (0: only the final one; unset:
+    /// [`crate::defaults::CHECKPOINT_EVERY`]).
     #[serde(default)]
-    pub checkpoint_every: u32,
+    pub checkpoint_every: Option<u32>,
     /// Base seed.
     #[serde(default)]
     pub seed: u64,
@@ -115,15 +116,15 @@ pub struct ResolvedSpec {
     pub agents_per_cell: usize,
     /// PPO epochs per cell.
     pub epochs: u32,
-    /// Checkpoint interval in epochs (0: only the final one).
+    /// Checkpoint interval in epochs, at least 1 (the final checkpoint is always written).
     pub checkpoint_every: u32,
     /// Base seed.
     pub seed: u64,
     /// PPO overrides.
     pub ppo_overrides: BTreeMap<String, f64>,
-    /// Robots in the evaluation rollout (0: trainer default).
+    /// Robots in the evaluation rollout.
     pub eval_robots: usize,
-    /// Evaluation seconds (0: trainer default).
+    /// Evaluation seconds.
     pub eval_seconds: f32,
 }
 
@@ -255,6 +256,22 @@ impl SweepSpec {
                     }
                 }
             };
+            if let Some(Axis::Range { min, max, count }) = given {
+                if *count > 1 && min > max {
+                    problems.push(format!(
+                        "{name} runs from min {min} down to max {max}: write the smaller value as min"
+                    ));
+                }
+            }
+            if let Some(Axis::Range { count, .. }) = &axis {
+                // Checked before expanding: a count of billions must not allocate billions.
+                if *count > MAX_CELLS {
+                    problems.push(format!(
+                        "{name}.count is {count}, more than the limit of {MAX_CELLS} cells"
+                    ));
+                    return vec![];
+                }
+            }
             let values = axis.map(|a| a.values()).unwrap_or_default();
             if let Some(Axis::Range { count: 0, .. }) = given {
                 problems.push(format!("{name}.count is 0: use at least 1"));
@@ -271,6 +288,11 @@ impl SweepSpec {
         };
         let w1_values = axis("w1", &self.w1, grid.as_ref().map(|g| &g.w1), &mut problems);
         let w2_values = axis("w2", &self.w2, grid.as_ref().map(|g| &g.w2), &mut problems);
+        if let Some(v) = w1_values.iter().find(|v| **v < 0.0) {
+            problems.push(format!(
+                "w1 {v} is negative: w1 weighs the velocity-tracking reward, a negative weight rewards ignoring the command; use values >= 0"
+            ));
+        }
         if w2_values.iter().any(|v| *v > 3.0) {
             problems.push(
                 "w2 is the log10 of the torque weight: values above 3 are not sensible".into(),
@@ -335,16 +357,31 @@ impl SweepSpec {
             w2_values,
             agents_per_cell,
             epochs,
-            checkpoint_every: self.checkpoint_every,
+            checkpoint_every: defaults::checkpoint_every(self.checkpoint_every, epochs),
             seed: self.seed,
             ppo_overrides: self.ppo.clone(),
-            eval_robots: self.eval.robots.unwrap_or(0),
-            eval_seconds: self.eval.seconds.unwrap_or(0.0),
+            eval_robots: self.eval.robots.unwrap_or(defaults::EVAL_ROBOTS),
+            eval_seconds: self.eval.seconds.unwrap_or(defaults::EVAL_SECONDS),
         })
     }
 }
 
 impl ResolvedSpec {
+    /// Fills values that specs stored by earlier versions left at 0 ("the worker's
+    /// default"), so every spec read back carries concrete values.
+    pub fn with_defaults(mut self) -> Self {
+        if self.checkpoint_every == 0 {
+            self.checkpoint_every = self.epochs.max(1);
+        }
+        if self.eval_robots == 0 {
+            self.eval_robots = defaults::EVAL_ROBOTS;
+        }
+        if self.eval_seconds <= 0.0 {
+            self.eval_seconds = defaults::EVAL_SECONDS;
+        }
+        self
+    }
+
     /// Expands the grid: terrains x w1 x w2, in that order, each cell with its own seed.
     pub fn cells(&self) -> Vec<CellPlan> {
         let mut out = Vec::with_capacity(self.cell_count());
@@ -487,6 +524,45 @@ mod tests {
         ] {
             assert!(all.contains(needle), "{needle} not in {all}");
         }
+    }
+
+    /// Fault-injection findings: a huge count ran the coordinator out of memory, and a
+    /// negative w1 or a descending range were accepted without comment.
+    #[test]
+    fn huge_counts_descending_ranges_and_negative_w1_are_refused() {
+        let text = "robot = \"anymal\"\nterrains = [\"flat\"]\nagents_per_cell = 1\nepochs = 1\n\
+                    w1 = { min = -1.0, max = 2.0, count = 2 }\n\
+                    w2 = { min = -2.0, max = -6.0, count = 1000000000000 }\n";
+        let err = SweepSpec::from_toml(text)
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap_err();
+        let all = err.to_string();
+        for needle in ["w2.count is 1000000000000", "w2 runs from min -2 down to max -6", "w1 -1 is negative"] {
+            assert!(all.contains(needle), "{needle} not in {all}");
+        }
+    }
+
+    /// Every default is decided when the spec is resolved: nothing reaches a worker as 0.
+    #[test]
+    fn defaults_are_decided_at_resolution() {
+        let base = "robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\n";
+        let r = SweepSpec::from_toml(base).unwrap().resolve_with(ok).unwrap();
+        assert_eq!(r.checkpoint_every, crate::defaults::CHECKPOINT_EVERY);
+        assert_eq!(r.eval_robots, crate::defaults::EVAL_ROBOTS);
+        assert_eq!(r.eval_seconds, crate::defaults::EVAL_SECONDS);
+        let only_final = SweepSpec::from_toml(&format!("{base}checkpoint_every = 0\n"))
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap();
+        assert_eq!(only_final.checkpoint_every, 3000, "only the final checkpoint");
+        let mut old = r.clone();
+        (old.checkpoint_every, old.eval_robots, old.eval_seconds) = (0, 0, 0.0);
+        let old = old.with_defaults();
+        assert_eq!(
+            (old.checkpoint_every, old.eval_robots, old.eval_seconds),
+            (3000, crate::defaults::EVAL_ROBOTS, crate::defaults::EVAL_SECONDS)
+        );
     }
 
     #[test]

@@ -200,9 +200,15 @@ impl Agent {
         let ctl = &p.control;
         let clip = p.observation.clip;
         let mut targets = [0.0f32; NJ];
+        let limits = self.world.joint_limits();
         for k in 0..NJ {
             self.actions[k] = actions[k].clamp(-clip, clip);
             targets[k] = p.default_pose[k] + ctl.action_scale * self.actions[k];
+            // A target beyond the joint's stop only presses the joint into it at full
+            // torque; actuators keep their targets within the joint range.
+            if let (true, Some([lo, hi])) = (ctl.clamp_targets, limits[k]) {
+                targets[k] = targets[k].clamp(lo, hi);
+            }
         }
         let mut tau = [0.0f32; NJ];
         let (mut torque_sq, mut torque_norm, mut abs_torque, mut power) =
@@ -253,6 +259,9 @@ impl Agent {
             || base.pos.z - self.world.tile().height(base.pos.x, base.pos.y)
                 < 0.35 * p.nominal_base_height;
         let timeout = !fell && self.step_in_episode >= max_steps;
+        if fell && std::env::var_os("DBG_FALLS").is_some() {
+            eprintln!("FALL step {} contact {} gz {:.2} h {:.3} cmd {:.2} vh {:.2} {:.2} q {:?}", self.step_in_episode, self.world.base_contact(), grav_b.z, base.pos.z - self.world.tile().height(base.pos.x, base.pos.y), self.cmd.speed, vh.x, vh.y, self.q.iter().map(|v| (v*100.0).round()/100.0).collect::<Vec<_>>());
+        }
 
         let inp = RewardInput {
             cmd_speed: self.cmd.speed,

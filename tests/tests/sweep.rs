@@ -1,7 +1,8 @@
 //! Real-process sweeps: two workers finish a 2x2 sweep; a worker killed mid-cell is
 //! replaced and its cell resumes from its checkpoint; a coordinator killed mid-sweep is
 //! restarted and the sweep completes without losing or duplicating a score; a worker whose
-//! coordinator lost its database registers again.
+//! coordinator lost its database registers again; a worker stopped with SIGTERM gives its
+//! cell back at once.
 
 mod common;
 
@@ -205,6 +206,80 @@ async fn killed_worker_cell_resumes_on_another_worker() {
         epochs, LONG_EPOCHS as i64,
         "the epoch count continues across attempts"
     );
+}
+
+/// Fault-injection finding: a worker stopped with SIGTERM uploaded its checkpoint and
+/// exited, but its cell stayed `running` until the lease expired and the stop counted as a
+/// failed attempt (three preemptions failed a healthy cell). Now the worker gives the cell
+/// back: it is queued at once, and with `--max-attempts 1` it still finishes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn stopped_worker_gives_its_cell_back_at_once() {
+    let _g = heavy();
+    let tmp = tempfile::tempdir().unwrap();
+    let coord = Coord::start(
+        tmp.path(),
+        "127.0.0.1:0",
+        &["--lease-seconds", "300", "--max-attempts", "1"],
+    )
+    .await;
+    let mut c = coord.sweeps().await;
+    let sweep = create(&mut c, tiny_spec(&[4.0], &[-5.0], LONG_EPOCHS)).await;
+    let mut a = start_worker(tmp.path(), &coord.url(), "a");
+    let db = coord.db().await;
+    wait_for("worker a to upload a checkpoint", SWEEP_TIMEOUT, || {
+        let db = db.clone();
+        async move {
+            let e: Option<i64> = sqlx::query_scalar("SELECT MAX(epoch) FROM cell_checkpoints")
+                .fetch_one(&db)
+                .await
+                .ok()?;
+            e.filter(|&e| e >= 1)
+        }
+    })
+    .await;
+    let st = std::process::Command::new("kill")
+        .args(["-TERM", &a.child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    wait_for("worker a to exit after SIGTERM", Duration::from_secs(60), || {
+        let exited = a.child.try_wait().ok().flatten().is_some();
+        async move { exited.then_some(()) }
+    })
+    .await;
+    // Far sooner than the 300 s lease: the cell is back in the queue.
+    let attempt: String = wait_for("the cell to be queued again", Duration::from_secs(10), || {
+        let db = db.clone();
+        async move {
+            let row: (String, String) = sqlx::query_as(
+                "SELECT c.state, a.state FROM cells c JOIN attempts a ON a.cell_id = c.id ORDER BY a.id LIMIT 1",
+            )
+            .fetch_one(&db)
+            .await
+            .ok()?;
+            (row.0 == "queued").then_some(row.1)
+        }
+    })
+    .await;
+    assert_eq!(attempt, "released", "{}", tail(&a.log_text(), 20));
+    let b = start_worker(tmp.path(), &coord.url(), "b");
+    let done = wait_done(
+        &coord,
+        sweep.sweep_id,
+        SWEEP_TIMEOUT,
+        &[&coord.proc, &a, &b],
+    )
+    .await;
+    assert_eq!(
+        (done.cells_done, done.cells_failed),
+        (1, 0),
+        "a release is not a failed attempt"
+    );
+    let states: Vec<String> = sqlx::query_scalar("SELECT state FROM attempts ORDER BY id")
+        .fetch_all(&db)
+        .await
+        .unwrap();
+    assert_eq!(states, ["released", "done"]);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -165,3 +165,64 @@ async fn tls_with_token() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// Fault-injection finding: a self-signed certificate from a plain `openssl req -x509`
+/// (CA:TRUE) is refused by rustls as a server certificate; the CLI then asked "is it
+/// running?" and the worker retried for ever as if the coordinator were unreachable. Both
+/// must say what is wrong with the certificate, and the worker must stop.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_ca_certificate_as_server_certificate_is_named_not_retried() {
+    let tmp = tempfile::tempdir().unwrap();
+    let certs = tmp.path().join("certs");
+    std::fs::create_dir_all(&certs).unwrap();
+    openssl(
+        &certs,
+        &[
+            "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "self.key", "-out",
+            "self.pem", "-days", "2", "-subj", "/CN=localhost", "-addext",
+            "subjectAltName=DNS:localhost,IP:127.0.0.1",
+        ],
+    );
+    let (cert, key) = (certs.join("self.pem"), certs.join("self.key"));
+    let coord = Coord::start(
+        tmp.path(),
+        "127.0.0.1:0",
+        &[
+            "--tls-cert",
+            cert.to_str().unwrap(),
+            "--tls-key",
+            key.to_str().unwrap(),
+        ],
+    )
+    .await;
+    let port = coord.addr.rsplit(':').next().unwrap().to_string();
+    let url = format!("https://localhost:{port}");
+    let out = Command::new(bin("coordinator"))
+        .args(["list", "--connect", &url, "--tls-ca", cert.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("CA:FALSE") && !err.contains("is it running"), "{err}");
+
+    let mut worker = Proc::spawn(
+        "worker",
+        &[
+            "--connect".into(),
+            url.clone(),
+            "--tls-ca".into(),
+            cert.display().to_string(),
+            "--work-dir".into(),
+            tmp.path().join("work").display().to_string(),
+        ],
+        tmp.path().join("worker.log"),
+    );
+    let status = wait_for("the worker to give up", std::time::Duration::from_secs(30), || {
+        let s = worker.child.try_wait().ok().flatten();
+        async move { s }
+    })
+    .await;
+    let log = worker.log_text();
+    assert!(!status.success(), "{log}");
+    assert!(log.contains("CA:FALSE"), "{log}");
+}

@@ -102,7 +102,7 @@ pub struct TrainArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// A checkpoint every K epochs.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = gaitsweep_core::defaults::CHECKPOINT_EVERY)]
     pub checkpoint_every: u32,
     /// Continue from this checkpoint.
     #[arg(long)]
@@ -114,10 +114,10 @@ pub struct TrainArgs {
     #[arg(long)]
     pub eval_every: Option<u32>,
     /// Robots of the evaluations.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = gaitsweep_core::defaults::EVAL_ROBOTS)]
     pub eval_robots: usize,
     /// Episode length of the evaluations (s).
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = gaitsweep_core::defaults::EVAL_SECONDS)]
     pub eval_seconds: f32,
     /// libtorch threads (default 1).
     #[arg(long)]

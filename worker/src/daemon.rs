@@ -7,6 +7,7 @@
 
 use crate::train::{train_cell, CellOutcome, CellRunConfig, EpochMetrics, TrainObserver};
 use crate::{Error, Result};
+use gaitsweep_core::reason;
 use gaitsweep_core::pb::{self, worker_service_client::WorkerServiceClient};
 use gaitsweep_core::{bearer, AUTH_HEADER};
 use sha2::{Digest, Sha256};
@@ -112,11 +113,12 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
         async move { c.register(r).await }
     })
     .await
-    .map_err(|s| {
-        Error::Config(format!(
+    .map_err(|s| match tls_refused(&s) {
+        Some(tls) => Error::Config(format!("cannot connect to {}: {tls}", args.connect)),
+        None => Error::Config(format!(
             "the coordinator refused registration: {}",
             s.message()
-        ))
+        )),
     })?;
     let ctx = Arc::new(Ctx {
         client,
@@ -214,8 +216,15 @@ impl Backoff {
     }
 }
 
-/// Whether a failed call may succeed later (the coordinator is away or busy).
+/// Whether a failed call may succeed later (the coordinator is away, busy, or its disk
+/// is full). A refused TLS certificate is not: retrying cannot fix it.
 fn transient(s: &Status) -> bool {
+    if tls_refused(s).is_some() {
+        return false;
+    }
+    if reason::of(s) == Some(reason::DISK_FULL) {
+        return true;
+    }
     matches!(
         s.code(),
         Code::Unavailable
@@ -260,7 +269,16 @@ where
             {
                 let d = backoff.delay(attempt);
                 if attempt == 0 || attempt % 10 == 0 {
-                    tracing::warn!(call = what, code = ?s.code(), error = %s.message(), retry_in_ms = d.as_millis() as u64, "coordinator unreachable, retrying");
+                    let why = match s.code() {
+                        Code::Unavailable | Code::DeadlineExceeded | Code::Cancelled => {
+                            "coordinator unreachable, retrying"
+                        }
+                        _ if reason::of(&s) == Some(reason::DISK_FULL) => {
+                            "the coordinator's disk is full, retrying"
+                        }
+                        _ => "the coordinator could not take the call, retrying",
+                    };
+                    tracing::warn!(call = what, code = ?s.code(), error = %s.message(), retry_in_ms = d.as_millis() as u64, "{why}");
                 }
                 attempt += 1;
                 tokio::time::sleep(d).await;
@@ -314,7 +332,12 @@ impl Ctx {
 
 /// The coordinator's answer for a worker id it does not know (its database was replaced).
 fn is_unknown_worker(s: &tonic::Status) -> bool {
-    s.code() == Code::FailedPrecondition && s.message().contains("is not registered")
+    reason::of(s) == Some(reason::UNKNOWN_WORKER)
+}
+
+/// What is wrong if the call failed because the TLS handshake refused the certificate.
+fn tls_refused(s: &Status) -> Option<String> {
+    gaitsweep_core::reason::tls_problem(s)
 }
 
 async fn slot_loop(ctx: Arc<Ctx>, slot: u32) {
@@ -411,16 +434,8 @@ async fn run_lease(ctx: &Ctx, slot: u32, lease: pb::Lease) -> Result<()> {
         out_dir: dir.clone(),
         resume_from,
         ppo_overrides: task.ppo_overrides.clone(),
-        eval_robots: if task.eval_robots == 0 {
-            8
-        } else {
-            task.eval_robots as usize
-        },
-        eval_seconds: if task.eval_seconds == 0.0 {
-            10.0
-        } else {
-            task.eval_seconds
-        },
+        eval_robots: task.eval_robots as usize,
+        eval_seconds: task.eval_seconds,
     };
     let (tx, mut rx) = mpsc::unbounded_channel();
     let bridge_tx = tx.clone();
@@ -595,8 +610,27 @@ async fn deliver(
                 return Ok(());
             }
             Event::Done(Err(e)) => {
-                if stop.load(Ordering::Relaxed) || SHUTDOWN.load(Ordering::Relaxed) {
-                    tracing::info!(lease, "cell stopped; its lease expires and it resumes from the uploaded checkpoint");
+                if stop.load(Ordering::Relaxed) {
+                    tracing::info!(lease, "cell stopped: the coordinator withdrew the lease");
+                    return Ok(());
+                }
+                if SHUTDOWN.load(Ordering::Relaxed) {
+                    // Give the cell back at once: it is queued again without waiting for the
+                    // lease to expire, and a stop is not counted as a failed attempt.
+                    let req = pb::ReleaseLeaseRequest {
+                        lease_id: lease,
+                        reason: "worker stopping".into(),
+                    };
+                    match retry("release_lease", &ctx.backoff, None, || {
+                        let mut c = ctx.client.clone();
+                        let r = req.clone();
+                        async move { c.release_lease(r).await }
+                    })
+                    .await
+                    {
+                        Ok(r) => tracing::info!(lease, requeued = r.requeued, "cell stopped and given back; it resumes from its uploaded checkpoint"),
+                        Err(s) => tracing::warn!(lease, code = ?s.code(), error = %s.message(), "cell stopped; could not give it back, its lease will expire"),
+                    }
                     return Ok(());
                 }
                 tracing::error!(lease, error = %e, "training failed");
@@ -720,5 +754,30 @@ async fn download(ctx: &Ctx, ck: &pb::CheckpointRef, stop: &AtomicBool) -> Resul
         }
         tokio::time::sleep(ctx.backoff.delay(attempt)).await;
         attempt += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_full_coordinator_disk_is_retried_a_too_large_upload_is_not() {
+        let full = reason::with(Status::resource_exhausted("disk full"), reason::DISK_FULL);
+        assert!(transient(&full));
+        assert!(!transient(&Status::resource_exhausted("checkpoint too large")));
+        assert!(transient(&Status::unavailable("connection refused")));
+    }
+
+    #[test]
+    fn unknown_workers_are_recognised_by_reason_not_text() {
+        let s = reason::with(
+            Status::failed_precondition("anything at all"),
+            reason::UNKNOWN_WORKER,
+        );
+        assert!(is_unknown_worker(&s));
+        assert!(!is_unknown_worker(&Status::failed_precondition(
+            "worker \"w\" is not registered: call register first"
+        )));
     }
 }

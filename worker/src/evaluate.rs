@@ -78,10 +78,10 @@ pub struct EvalArgs {
     #[arg(long)]
     pub difficulty: Option<u8>,
     /// Robots, one episode each.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = gaitsweep_core::defaults::EVAL_ROBOTS)]
     pub robots: usize,
     /// Episode length (s).
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = gaitsweep_core::defaults::EVAL_SECONDS)]
     pub seconds: f32,
     /// Seed of spawns and commands (default: the scoring rollout's).
     #[arg(long)]

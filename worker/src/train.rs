@@ -171,6 +171,12 @@ fn validate(cfg: &CellRunConfig, p: &PpoParams) -> Result<()> {
     if cfg.checkpoint_every == 0 {
         return bad("checkpoint_every must be at least 1".into());
     }
+    if cfg.eval_robots == 0 || !(cfg.eval_seconds.is_finite() && cfg.eval_seconds > 0.0) {
+        return bad(format!(
+            "the evaluation needs at least 1 robot and a positive length, got {} robots x {} s",
+            cfg.eval_robots, cfg.eval_seconds
+        ));
+    }
     if p.num_mini_batches == 0 || p.num_learning_epochs == 0 || p.steps_per_env == 0 {
         return bad(
             "num_mini_batches, num_learning_epochs and steps_per_env must be positive".into(),

@@ -274,6 +274,40 @@ impl<S: Store> WorkerService for WorkerApi<S> {
         }))
     }
 
+    async fn release_lease(
+        &self,
+        req: Request<pb::ReleaseLeaseRequest>,
+    ) -> Result<Response<pb::ReleaseLeaseResponse>, Status> {
+        let r = req.into_inner();
+        let lease = LeaseId(r.lease_id);
+        self.0.leases.remove(lease);
+        let reason = if r.reason.trim().is_empty() {
+            "released by its worker".to_string()
+        } else {
+            format!("released: {}", r.reason.trim())
+        };
+        let out = self
+            .0
+            .store
+            .end_attempt(
+                lease,
+                AttemptEnd::Released,
+                &reason,
+                self.0.limits.max_attempts,
+                now_ms(),
+            )
+            .await?;
+        tracing::info!(lease = lease.0, cell = out.cell.id.0, state = %out.cell.state, "lease released");
+        let sweep = out.cell.sweep_id.0;
+        self.0.emit(sweep, Kind::Cell((&out.cell).into()));
+        if let Some(s) = &out.finished {
+            self.0.emit(sweep, Kind::Finished(s.into()));
+        }
+        Ok(Response::new(pb::ReleaseLeaseResponse {
+            requeued: out.cell.state == gaitsweep_core::CellState::Queued,
+        }))
+    }
+
     type DownloadCheckpointStream = ReceiverStream<Result<pb::CheckpointChunk, Status>>;
 
     async fn download_checkpoint(

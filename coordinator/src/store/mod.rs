@@ -84,6 +84,9 @@ pub enum AttemptEnd {
     Failed,
     /// Its lease expired (missed heartbeats).
     Expired,
+    /// The worker gave the cell back (it is stopping): not a failure, the cell is queued
+    /// again at once and the attempt does not count towards the attempt limit.
+    Released,
 }
 
 impl AttemptEnd {
@@ -92,6 +95,7 @@ impl AttemptEnd {
         match self {
             Self::Failed => "failed",
             Self::Expired => "expired",
+            Self::Released => "released",
         }
     }
 }
@@ -168,7 +172,8 @@ pub trait Store: Send + Sync + 'static {
         final_sha256: Option<&str>,
         now_ms: i64,
     ) -> impl Future<Output = Result<ResultOutcome>> + Send;
-    /// Ends an attempt without a result; the cell is requeued or failed.
+    /// Ends an attempt without a result; the cell is requeued or failed (failed once the
+    /// failed and expired attempts reach `max_attempts`; released ones do not count).
     fn end_attempt(
         &self,
         lease: LeaseId,

@@ -5,14 +5,14 @@ use super::{
     AttemptEnd, AttemptOutcome, LeaseGrant, ResultOutcome, RunningLease, Store, WorkerInfo,
 };
 use crate::sched::{self, Candidate};
-use crate::{Error, Result};
+use crate::{validate, Error, Result};
 use gaitsweep_core::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
 use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, SweepId, SweepState, WorkerId};
 use gaitsweep_sim::GaitScore;
 use sqlx::sqlite::{
     SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous,
 };
-use sqlx::{Row, Sqlite, SqlitePool, Transaction};
+use sqlx::{Connection, Row, Sqlite, SqliteConnection, SqlitePool, Transaction};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::str::FromStr;
@@ -53,16 +53,50 @@ impl SqliteStore {
             .synchronous(SqliteSynchronous::Normal)
             .foreign_keys(true)
             .busy_timeout(Duration::from_secs(10));
+        // Migrations that rebuild a table (SQLite's only way to change a constraint) need
+        // foreign keys off while they run; they are checked once the migrations are done.
+        let mut mig = SqliteConnection::connect_with(&opts.clone().foreign_keys(false)).await?;
+        MIGRATOR.run(&mut mig).await?;
+        let broken = sqlx::query("PRAGMA foreign_key_check")
+            .fetch_all(&mut mig)
+            .await?;
+        mig.close().await?;
+        if !broken.is_empty() {
+            return Err(Error::Server(format!(
+                "{}: {} rows break a foreign key after the migrations; restore a backup of the data dir",
+                path.display(),
+                broken.len()
+            )));
+        }
         let write = SqlitePoolOptions::new()
             .max_connections(1)
+            // A failed write (a full disk) can leave the connection inside a transaction
+            // that SQLite already rolled back, and every later BEGIN on it fails. The ping
+            // waits for the rollback queued when the failed transaction was dropped; a
+            // connection still in a transaction after it is replaced by a fresh one.
+            .before_acquire(|conn, _| {
+                Box::pin(async move {
+                    conn.ping().await?;
+                    let healthy = !conn.is_in_transaction();
+                    if !healthy {
+                        tracing::warn!("writer connection left inside a failed transaction; opening a new one");
+                    }
+                    Ok(healthy)
+                })
+            })
             .connect_with(opts.clone())
             .await?;
-        MIGRATOR.run(&write).await?;
         let read = SqlitePoolOptions::new()
             .max_connections(4)
             .connect_with(opts.read_only(true))
             .await?;
         Ok(Self { write, read })
+    }
+
+    /// The writer pool, for tests that reach the connection (e.g. to fill the database).
+    #[cfg(test)]
+    pub(crate) fn writer(&self) -> &SqlitePool {
+        &self.write
     }
 
     async fn begin(&self) -> Result<Tx> {
@@ -110,7 +144,7 @@ fn cell_from_row(r: &SqliteRow) -> Result<CellRecord> {
 }
 
 fn sweep_from_row(r: &SqliteRow) -> Result<SweepRecord> {
-    let spec: ResolvedSpec = serde_json::from_str(r.try_get("spec_json")?)?;
+    let spec = serde_json::from_str::<ResolvedSpec>(r.try_get("spec_json")?)?.with_defaults();
     let n = |name: &str| -> Result<u32> { Ok(r.try_get::<i64, _>(name)? as u32) };
     Ok(SweepRecord {
         id: SweepId(r.try_get("id")?),
@@ -146,26 +180,42 @@ async fn sweep_tx(tx: &mut Tx, id: SweepId) -> Result<SweepRecord> {
     sweep_from_row(&row.ok_or(Error::UnknownSweep(id))?)
 }
 
-/// The cell and its state for a lease id.
-async fn lease_cell(tx: &mut Tx, lease: LeaseId) -> Result<(CellId, SweepId, CellState, String)> {
+/// What a lease id refers to.
+struct LeaseCell {
+    cell: CellId,
+    sweep: SweepId,
+    /// The cell's state.
+    state: CellState,
+    /// The attempt's state.
+    attempt_state: String,
+    /// The epochs the cell trains in total.
+    epochs: u32,
+}
+
+/// The cell, its state and its epochs for a lease id.
+async fn lease_cell(tx: &mut Tx, lease: LeaseId) -> Result<LeaseCell> {
     let row = sqlx::query(
-        "SELECT a.cell_id, c.sweep_id, c.state, a.state AS attempt_state FROM attempts a \
-         JOIN cells c ON c.id = a.cell_id WHERE a.id = ?",
+        "SELECT a.cell_id, c.sweep_id, c.state, a.state AS attempt_state, \
+         json_extract(w.spec_json, '$.epochs') AS epochs FROM attempts a \
+         JOIN cells c ON c.id = a.cell_id JOIN sweeps w ON w.id = c.sweep_id WHERE a.id = ?",
     )
     .bind(lease.0)
     .fetch_optional(&mut **tx)
     .await?
     .ok_or(Error::UnknownLease(lease))?;
-    Ok((
-        CellId(row.try_get("cell_id")?),
-        SweepId(row.try_get("sweep_id")?),
-        CellState::from_str(row.try_get("state")?)?,
-        row.try_get("attempt_state")?,
-    ))
+    Ok(LeaseCell {
+        cell: CellId(row.try_get("cell_id")?),
+        sweep: SweepId(row.try_get("sweep_id")?),
+        state: CellState::from_str(row.try_get("state")?)?,
+        attempt_state: row.try_get("attempt_state")?,
+        epochs: row.try_get::<i64, _>("epochs")? as u32,
+    })
 }
 
+/// Refuses reports for cells that are finished, cancelled or failed for good (a late
+/// report must not revive a failed cell).
 fn refuse_closed(cell: CellId, state: CellState) -> Result<()> {
-    if matches!(state, CellState::Done | CellState::Cancelled) {
+    if matches!(state, CellState::Done | CellState::Cancelled | CellState::Failed) {
         return Err(Error::CellClosed {
             cell,
             state: state.to_string(),
@@ -395,13 +445,14 @@ impl Store for SqliteStore {
         now_ms: i64,
     ) -> Result<Option<LeaseGrant>> {
         let mut tx = self.begin().await?;
-        let known: Option<i64> = sqlx::query_scalar("SELECT 1 FROM workers WHERE id = ?")
+        let slots: Option<i64> = sqlx::query_scalar("SELECT slots FROM workers WHERE id = ?")
             .bind(&worker.0)
             .fetch_optional(&mut *tx)
             .await?;
-        if known.is_none() {
+        let Some(slots) = slots else {
             return Err(Error::UnknownWorker(worker.0.clone()));
-        }
+        };
+        validate::slot(slot, slots as u32)?;
         let heads: Vec<(i64, i64)> = sqlx::query_as(
             "SELECT MIN(c.id), c.sweep_id FROM cells c JOIN sweeps w ON w.id = c.sweep_id \
              WHERE c.state = 'queued' AND w.state = 'running' GROUP BY c.sweep_id",
@@ -460,7 +511,7 @@ impl Store for SqliteStore {
         Ok(Some(LeaseGrant {
             lease: LeaseId(lease),
             cell,
-            spec: serde_json::from_str(&spec_json)?,
+            spec: serde_json::from_str::<ResolvedSpec>(&spec_json)?.with_defaults(),
             resume,
         }))
     }
@@ -485,9 +536,9 @@ impl Store for SqliteStore {
 
     async fn open_lease(&self, lease: LeaseId) -> Result<(CellId, SweepId)> {
         let mut tx = self.read.begin().await?;
-        let (cell, sweep, state, _) = lease_cell(&mut tx, lease).await?;
-        refuse_closed(cell, state)?;
-        Ok((cell, sweep))
+        let l = lease_cell(&mut tx, lease).await?;
+        refuse_closed(l.cell, l.state)?;
+        Ok((l.cell, l.sweep))
     }
 
     async fn record_progress(
@@ -496,8 +547,15 @@ impl Store for SqliteStore {
         epochs: &[(u32, BTreeMap<String, f64>)],
     ) -> Result<(usize, CellId, SweepId)> {
         let mut tx = self.begin().await?;
-        let (cell, sweep, state, _) = lease_cell(&mut tx, lease).await?;
+        let LeaseCell {
+            cell,
+            sweep,
+            state,
+            epochs: total,
+            ..
+        } = lease_cell(&mut tx, lease).await?;
         refuse_closed(cell, state)?;
+        validate::progress(total, epochs)?;
         let mut rows = 0;
         let mut last = 0;
         for (epoch, values) in epochs {
@@ -534,8 +592,10 @@ impl Store for SqliteStore {
         now_ms: i64,
     ) -> Result<()> {
         let mut tx = self.begin().await?;
-        let (cell, _, state, _) = lease_cell(&mut tx, lease).await?;
-        refuse_closed(cell, state)?;
+        let l = lease_cell(&mut tx, lease).await?;
+        let cell = l.cell;
+        refuse_closed(cell, l.state)?;
+        validate::checkpoint_epoch(l.epochs, ckpt.epoch)?;
         sqlx::query("INSERT OR IGNORE INTO checkpoints (sha256, size, path, created_unix_ms) VALUES (?, ?, ?, ?)")
             .bind(&ckpt.sha256)
             .bind(ckpt.size as i64)
@@ -586,8 +646,15 @@ impl Store for SqliteStore {
         final_sha256: Option<&str>,
         now_ms: i64,
     ) -> Result<ResultOutcome> {
+        validate::score(score)?;
         let mut tx = self.begin().await?;
-        let (cell_id, sweep, state, _) = lease_cell(&mut tx, lease).await?;
+        let LeaseCell {
+            cell: cell_id,
+            sweep,
+            state,
+            epochs: total,
+            ..
+        } = lease_cell(&mut tx, lease).await?;
         let scored: Option<i64> = sqlx::query_scalar("SELECT 1 FROM scores WHERE cell_id = ?")
             .bind(cell_id.0)
             .fetch_optional(&mut *tx)
@@ -601,12 +668,8 @@ impl Store for SqliteStore {
                 finished: None,
             });
         }
-        if state == CellState::Cancelled {
-            return Err(Error::CellClosed {
-                cell: cell_id,
-                state: state.to_string(),
-            });
-        }
+        refuse_closed(cell_id, state)?;
+        validate::result_epochs(total, epochs)?;
         let final_ckpt = match final_sha256 {
             Some(sha) => {
                 let ck = checkpoint_of(&mut tx, Some(sha.to_string()), Some(epochs as i64)).await?;
@@ -682,7 +745,13 @@ impl Store for SqliteStore {
         now_ms: i64,
     ) -> Result<AttemptOutcome> {
         let mut tx = self.begin().await?;
-        let (cell_id, sweep, state, attempt_state) = lease_cell(&mut tx, lease).await?;
+        let LeaseCell {
+            cell: cell_id,
+            sweep,
+            state,
+            attempt_state,
+            ..
+        } = lease_cell(&mut tx, lease).await?;
         if attempt_state != "running" {
             let cell = cell_tx(&mut tx, cell_id).await?;
             return Ok(AttemptOutcome {
@@ -704,11 +773,18 @@ impl Store for SqliteStore {
         .fetch_one(&mut *tx)
         .await?;
         if state == CellState::Running && others == 0 {
-            let attempts: i64 = sqlx::query_scalar("SELECT attempts FROM cells WHERE id = ?")
-                .bind(cell_id.0)
-                .fetch_one(&mut *tx)
-                .await?;
-            let next = sched::after_failure(attempts as u32, max_attempts);
+            let failures: i64 = sqlx::query_scalar(
+                "SELECT COUNT(*) FROM attempts WHERE cell_id = ? AND state IN ('failed', 'expired')",
+            )
+            .bind(cell_id.0)
+            .fetch_one(&mut *tx)
+            .await?;
+            let next = match end {
+                AttemptEnd::Released => CellState::Queued,
+                AttemptEnd::Failed | AttemptEnd::Expired => {
+                    sched::after_failure(failures as u32, max_attempts)
+                }
+            };
             sqlx::query("UPDATE cells SET state = ?, last_error = ? WHERE id = ?")
                 .bind(next.as_str())
                 .bind(error)
@@ -724,7 +800,16 @@ impl Store for SqliteStore {
 
     async fn promoted(&self, id: SweepId, terrain: Option<&str>) -> Result<PromotionRecord> {
         let mut tx = self.read.begin().await?;
-        sweep_tx(&mut tx, id).await?;
+        let sweep = sweep_tx(&mut tx, id).await?;
+        if let Some(t) = terrain {
+            if !sweep.spec.terrains.iter().any(|k| k.to_string() == t) {
+                let have: Vec<String> = sweep.spec.terrains.iter().map(|k| k.to_string()).collect();
+                return Err(Error::BadRequest(format!(
+                    "sweep {id} has no terrain {t:?}: its terrains are {}",
+                    have.join(", ")
+                )));
+            }
+        }
         let row: Option<(i64, i64)> = sqlx::query_as(
             "SELECT cell_id, promoted_unix_ms FROM promotions WHERE sweep_id = ? AND terrain = ? ORDER BY id DESC LIMIT 1",
         )

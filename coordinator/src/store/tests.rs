@@ -49,7 +49,7 @@ async fn setup() -> (tempfile::TempDir, SqliteStore, WorkerId) {
         hostname: "h".into(),
         cores: 2,
         device: "cpu".into(),
-        slots: 1,
+        slots: 2,
         version: "t".into(),
     };
     store.register_worker(&w, &info, 0).await.unwrap();
@@ -188,4 +188,181 @@ async fn resume_points_at_the_latest_checkpoint_and_cancel_stops_all() {
         store.sweep(SweepId(99)).await,
         Err(Error::UnknownSweep(_))
     ));
+}
+
+/// A full disk (here: SQLite's page limit) fails the writes that meet it; once space is
+/// back, writes succeed again without a restart.
+#[tokio::test]
+async fn the_writer_recovers_after_the_disk_was_full() {
+    let (_dir, store, _w) = setup().await;
+    let pages: i64 = sqlx::query_scalar("PRAGMA page_count")
+        .fetch_one(store.writer())
+        .await
+        .unwrap();
+    sqlx::query(&format!("PRAGMA max_page_count = {}", pages + 4))
+        .execute(store.writer())
+        .await
+        .unwrap();
+    let mut full = None;
+    for _ in 0..200 {
+        if let Err(e) = store.create_sweep(&spec(30, 30, vec![TerrainKind::Flat]), 1).await {
+            full = Some(e.to_string());
+            break;
+        }
+    }
+    let full = full.expect("the page limit was never reached");
+    assert!(full.contains("full"), "{full}");
+    // Space is back (the limit lifted): every later write must work.
+    let _ = sqlx::query("PRAGMA max_page_count = 1073741823")
+        .execute(store.writer())
+        .await;
+    for _ in 0..3 {
+        store
+            .create_sweep(&spec(2, 2, vec![TerrainKind::Flat]), 2)
+            .await
+            .expect("a write after the disk had space again");
+    }
+}
+
+/// Fault-injection finding: a result on the lease of a cell that had failed for good
+/// turned it `done`.
+#[tokio::test]
+async fn a_failed_cell_stays_failed() {
+    let (_d, store, w) = setup().await;
+    store
+        .create_sweep(&spec(1, 1, vec![TerrainKind::Flat]), 0)
+        .await
+        .unwrap();
+    let mut first = None;
+    for _ in 0..3 {
+        let g = store.lease_next(&w, 0, 1).await.unwrap().expect("lease");
+        first.get_or_insert(g.lease);
+        store
+            .end_attempt(g.lease, AttemptEnd::Failed, "boom", 3, 2)
+            .await
+            .unwrap();
+    }
+    let first = first.unwrap();
+    assert!(matches!(
+        store.report_result(first, &score(0.5), 3, None, 3).await,
+        Err(Error::CellClosed { .. })
+    ));
+    assert!(matches!(
+        store
+            .record_progress(first, &[(1, [("a".to_string(), 1.0)].into())])
+            .await,
+        Err(Error::CellClosed { .. })
+    ));
+    let cells = store.cells(SweepId(1)).await.unwrap();
+    assert_eq!(cells[0].state, CellState::Failed);
+    assert!(cells[0].score.is_none());
+    let state: String = sqlx::query_scalar("SELECT state FROM attempts WHERE id = ?")
+        .bind(first.0)
+        .fetch_one(store.writer())
+        .await
+        .unwrap();
+    assert_eq!(state, "failed");
+}
+
+/// Fault-injection finding: a stopping worker's cell waited for its lease to expire and
+/// the stop counted towards the attempt limit.
+#[tokio::test]
+async fn released_attempts_requeue_at_once_and_do_not_count() {
+    let (_d, store, w) = setup().await;
+    store
+        .create_sweep(&spec(1, 1, vec![TerrainKind::Flat]), 0)
+        .await
+        .unwrap();
+    for i in 0..5 {
+        let g = store.lease_next(&w, 0, i).await.unwrap().expect("lease");
+        let out = store
+            .end_attempt(g.lease, AttemptEnd::Released, "released: worker stopping", 2, i)
+            .await
+            .unwrap();
+        assert_eq!(out.cell.state, CellState::Queued, "release {i}");
+        assert!(out.finished.is_none());
+    }
+    // Failures still count: two more and the cell fails.
+    for i in 0..2 {
+        let g = store.lease_next(&w, 0, 10).await.unwrap().expect("lease");
+        let out = store
+            .end_attempt(g.lease, AttemptEnd::Expired, "gone", 2, 11)
+            .await
+            .unwrap();
+        assert_eq!(
+            out.cell.state,
+            if i == 0 { CellState::Queued } else { CellState::Failed }
+        );
+    }
+    let released: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM attempts WHERE state = 'released'")
+            .fetch_one(store.writer())
+            .await
+            .unwrap();
+    assert_eq!(released, 5);
+}
+
+/// Fault-injection findings: out-of-range epochs, non-finite scores and metrics, slot
+/// numbers the worker never registered, terrains a sweep does not have.
+#[tokio::test]
+async fn reports_outside_the_cell_are_refused_and_change_nothing() {
+    let (_d, store, w) = setup().await;
+    let sweep = store
+        .create_sweep(&spec(1, 1, vec![TerrainKind::Flat]), 0)
+        .await
+        .unwrap();
+    assert!(matches!(
+        store.lease_next(&w, 4_000_000_000, 1).await,
+        Err(Error::BadRequest(m)) if m.contains("slot 4000000000")
+    ));
+    let g = store.lease_next(&w, 0, 1).await.unwrap().unwrap();
+    let m = |v: f64| -> BTreeMap<String, f64> { [("kl".to_string(), v)].into() };
+    for (epoch, v) in [(u32::MAX, 1.0), (0, 1.0), (4, 1.0), (1, f64::NAN), (1, f64::INFINITY)] {
+        assert!(
+            matches!(
+                store.record_progress(g.lease, &[(epoch, m(v))]).await,
+                Err(Error::BadRequest(_))
+            ),
+            "epoch {epoch} value {v}"
+        );
+    }
+    assert_eq!(store.cells(sweep.id).await.unwrap()[0].epochs_done, 0);
+    let ck = CheckpointRecord {
+        sha256: format!("{:064x}", 7),
+        size: 1,
+        epoch: 99,
+    };
+    assert!(matches!(
+        store.record_checkpoint(g.lease, &ck, "x", 1).await,
+        Err(Error::BadRequest(_))
+    ));
+    for bad in [f64::INFINITY, f64::NAN] {
+        let mut s = score(0.5);
+        s.score = bad;
+        assert!(matches!(
+            store.report_result(g.lease, &s, 3, None, 2).await,
+            Err(Error::BadRequest(_))
+        ));
+        let mut s = score(0.5);
+        s.fall_rate = bad;
+        assert!(matches!(
+            store.report_result(g.lease, &s, 3, None, 2).await,
+            Err(Error::BadRequest(_))
+        ));
+    }
+    assert!(matches!(
+        store.report_result(g.lease, &score(0.5), 4, None, 2).await,
+        Err(Error::BadRequest(_))
+    ));
+    let cell = &store.cells(sweep.id).await.unwrap()[0];
+    assert_eq!((cell.state, cell.score.is_none()), (CellState::Running, true));
+    store
+        .report_result(g.lease, &score(0.5), 3, None, 2)
+        .await
+        .unwrap();
+    assert!(matches!(
+        store.promoted(sweep.id, Some("nosuch")).await,
+        Err(Error::BadRequest(m)) if m.contains("its terrains are flat")
+    ));
+    assert!(store.promoted(sweep.id, Some("flat")).await.is_ok());
 }
