@@ -3,7 +3,7 @@
 //! `INVALID_ARGUMENT` that names the field and the value.
 
 use crate::{Error, Result};
-use gaitsweep_sim::GaitScore;
+use gaitsweep_model::GaitScore;
 use std::collections::BTreeMap;
 
 /// Every component of a gait score must be a finite number: an infinite score would be

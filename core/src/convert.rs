@@ -4,7 +4,7 @@ use crate::pb;
 use crate::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
 use crate::spec::{Axis, EvalSpec, ResolvedSpec, SweepSpec};
 use crate::{CellState, Error, Result, SweepState};
-use gaitsweep_sim::GaitScore;
+use gaitsweep_model::GaitScore;
 
 impl From<&Axis> for pb::Axis {
     fn from(a: &Axis) -> Self {

@@ -2,7 +2,7 @@
 //! promotions. Their wire forms are built in [`crate::convert`].
 
 use crate::{CellId, CellState, ResolvedSpec, SweepId, SweepState};
-use gaitsweep_sim::GaitScore;
+use gaitsweep_model::GaitScore;
 
 /// A stored checkpoint: content-addressed file with its epoch.
 #[derive(Debug, Clone, PartialEq)]

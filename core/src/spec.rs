@@ -2,7 +2,7 @@
 //! expansion into cells.
 
 use crate::{defaults, Error, Result};
-use gaitsweep_sim::TerrainKind;
+use gaitsweep_model::TerrainKind;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -164,32 +164,6 @@ impl SweepSpec {
     /// Parses a TOML spec (unknown keys are an error).
     pub fn from_toml(text: &str) -> Result<Self> {
         Ok(toml::from_str(text)?)
-    }
-
-    /// Validates the spec against the robot presets on disk (`robots/`): the robot must
-    /// exist and PPO overrides must name real hyper-parameters.
-    pub fn resolve(&self) -> Result<ResolvedSpec> {
-        self.resolve_with(|robot| {
-            let preset = gaitsweep_sim::Preset::load(robot).map_err(|e| e.to_string())?;
-            let mut ppo = preset.ppo.clone();
-            let override_problem = ppo.apply_overrides(&self.ppo).err().map(|e| e.to_string());
-            let g = &preset.grid;
-            let grid = PresetGrid {
-                w1: Axis::Range {
-                    min: g.w1.min,
-                    max: g.w1.max,
-                    count: g.w1.count,
-                },
-                w2: Axis::Range {
-                    min: g.w2.min,
-                    max: g.w2.max,
-                    count: g.w2.count,
-                },
-                agents_per_cell: g.agents_per_cell,
-                epochs: g.epochs,
-            };
-            Ok((grid, override_problem))
-        })
     }
 
     /// Validates the spec with a preset lookup (`robot -> (grid, PPO override problem)` or
@@ -412,7 +386,7 @@ impl ResolvedSpec {
 
 /// Stores terrains by their names (`flat`, `rough`, ...).
 mod terrain_names {
-    use gaitsweep_sim::TerrainKind;
+    use gaitsweep_model::TerrainKind;
     use serde::{de::Error as _, Deserialize, Deserializer, Serializer};
 
     pub fn serialize<S: Serializer>(v: &[TerrainKind], s: S) -> Result<S::Ok, S::Error> {

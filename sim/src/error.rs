@@ -24,6 +24,9 @@ pub enum Error {
         /// What was wrong and what was expected.
         message: String,
     },
+    /// A preset file or a value of the shared model is invalid.
+    #[error(transparent)]
+    Model(#[from] gaitsweep_model::Error),
     /// A caller passed an invalid argument (wrong action length, unknown terrain, ...).
     #[error("invalid argument: {0}")]
     InvalidArgument(String),

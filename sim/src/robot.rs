@@ -58,15 +58,7 @@ pub struct RobotWorld {
     default_pose: Vec<f32>,
 }
 
-/// How the joints are simulated.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum JointBackend {
-    /// One reduced-coordinate multibody (exact joints, mass matrix rebuilt every substep).
-    Multibody,
-    /// Rigid bodies held together by impulse joint constraints.
-    Impulse,
-}
+pub use gaitsweep_model::preset::JointBackend;
 
 /// The rapier shape of a URDF primitive. Cylinders become capsules of the same radius and
 /// length when `capsules` is set (legged_gym's `replace_cylinder_with_capsule`): rapier's

@@ -10,14 +10,11 @@
 //! and evaluation draw their random fields from disjoint seeds ([`TerrainUse`]).
 
 use std::fmt;
-use std::str::FromStr;
 use std::sync::Arc;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::{Deserialize, Serialize};
 
-use crate::error::Error;
 
 /// Side of one legged_gym sub-tile (m).
 pub const SUB_TILE: f32 = 8.0;
@@ -30,50 +27,7 @@ pub const LEVELS: u8 = 10;
 /// legged_gym's platform in the middle of stairs and slopes (m).
 const PLATFORM: f32 = 3.0;
 
-/// The kinds of terrain.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, PartialOrd, Ord)]
-#[serde(rename_all = "lowercase")]
-pub enum TerrainKind {
-    /// A flat plane.
-    Flat,
-    /// Random uniform heightfield.
-    Rough,
-    /// Pyramid stairs, up for even robots, down for odd ones.
-    Stairs,
-    /// Pyramid slopes, up for even robots, down for odd ones.
-    Slopes,
-}
-
-impl TerrainKind {
-    /// All kinds.
-    pub const ALL: [TerrainKind; 4] = [Self::Flat, Self::Rough, Self::Stairs, Self::Slopes];
-}
-
-impl fmt::Display for TerrainKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Self::Flat => "flat",
-            Self::Rough => "rough",
-            Self::Stairs => "stairs",
-            Self::Slopes => "slopes",
-        })
-    }
-}
-
-impl FromStr for TerrainKind {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Self, Error> {
-        match s.to_ascii_lowercase().as_str() {
-            "flat" => Ok(Self::Flat),
-            "rough" => Ok(Self::Rough),
-            "stairs" => Ok(Self::Stairs),
-            "slopes" | "slope" => Ok(Self::Slopes),
-            other => Err(Error::InvalidArgument(format!(
-                "unknown terrain {other:?}; expected flat, rough, stairs or slopes"
-            ))),
-        }
-    }
-}
+pub use gaitsweep_model::TerrainKind;
 
 /// legged_gym's terrain parameters at a difficulty level.
 #[derive(Debug, Clone, Copy, PartialEq)]

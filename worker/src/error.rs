@@ -68,3 +68,9 @@ impl Error {
 
 /// Result alias of the worker library.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl From<gaitsweep_sim::model::Error> for Error {
+    fn from(e: gaitsweep_sim::model::Error) -> Self {
+        Error::Sim(e.into())
+    }
+}

@@ -18,7 +18,7 @@ mod html;
 mod plots;
 
 use anyhow::Context;
-use gaitsweep_sim::GaitScore;
+use gaitsweep_model::GaitScore;
 use sqlx::sqlite::{SqliteConnectOptions, SqlitePoolOptions};
 use sqlx::Row;
 use std::collections::BTreeMap;

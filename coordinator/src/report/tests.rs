@@ -6,7 +6,7 @@ use super::*;
 use crate::store::{SqliteStore, Store, WorkerInfo};
 use gaitsweep_core::records::CheckpointRecord;
 use gaitsweep_core::{ResolvedSpec, WorkerId};
-use gaitsweep_sim::TerrainKind;
+use gaitsweep_model::TerrainKind;
 
 fn score(v: f64) -> GaitScore {
     GaitScore {

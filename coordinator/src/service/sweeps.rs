@@ -22,7 +22,7 @@ impl<S: Store> SweepService for SweepApi<S> {
         req: Request<pb::CreateSweepRequest>,
     ) -> Result<Response<pb::Sweep>, Status> {
         let spec = spec_from_request(req.into_inner()).map_err(Error::from)?;
-        let resolved = tokio::task::spawn_blocking(move || spec.resolve())
+        let resolved = tokio::task::spawn_blocking(move || crate::presets::resolve(&spec))
             .await
             .map_err(|e| Status::internal(format!("spec validation panicked: {e}")))?
             .map_err(Error::from)?;

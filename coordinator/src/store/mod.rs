@@ -8,7 +8,7 @@ mod tests;
 use crate::Result;
 use gaitsweep_core::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
 use gaitsweep_core::{CellId, LeaseId, ResolvedSpec, SweepId, WorkerId};
-use gaitsweep_sim::GaitScore;
+use gaitsweep_model::GaitScore;
 use std::collections::BTreeMap;
 use std::future::Future;
 

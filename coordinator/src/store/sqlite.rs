@@ -8,7 +8,7 @@ use crate::sched::{self, Candidate};
 use crate::{validate, Error, Result};
 use gaitsweep_core::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
 use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, SweepId, SweepState, WorkerId};
-use gaitsweep_sim::GaitScore;
+use gaitsweep_model::GaitScore;
 use sqlx::sqlite::{
     SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous,
 };

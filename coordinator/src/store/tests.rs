@@ -4,7 +4,7 @@
 use super::*;
 use crate::Error;
 use gaitsweep_core::{CellState, SweepState};
-use gaitsweep_sim::TerrainKind;
+use gaitsweep_model::TerrainKind;
 
 fn spec(w1: usize, w2: usize, terrains: Vec<TerrainKind>) -> ResolvedSpec {
     ResolvedSpec {

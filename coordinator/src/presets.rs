@@ -1,0 +1,60 @@
+//! The coordinator's view of the robot presets on disk: a sweep spec is validated against
+//! the preset it names (the robot exists, PPO overrides name real hyper-parameters) and
+//! takes the preset's Table-1 grid for what it leaves unset. Only the preset file is read
+//! (`gaitsweep_model`); the URDF is the workers' business.
+
+use gaitsweep_core::spec::PresetGrid;
+use gaitsweep_core::{Axis, ResolvedSpec, SweepSpec};
+use gaitsweep_model::preset::{AxisSpec, PresetFile};
+
+fn axis(a: &AxisSpec) -> Axis {
+    Axis::Range {
+        min: a.min,
+        max: a.max,
+        count: a.count,
+    }
+}
+
+/// Validates `spec` against the presets on disk (`robots/` or `GAITSWEEP_ROBOTS`) and fills
+/// in every default. Reads files: call it off the async runtime.
+pub fn resolve(spec: &SweepSpec) -> gaitsweep_core::Result<ResolvedSpec> {
+    spec.resolve_with(|robot| {
+        let preset = PresetFile::load(robot).map_err(|e| e.to_string())?;
+        let mut ppo = preset.ppo.clone();
+        let override_problem = ppo.apply_overrides(&spec.ppo).err().map(|e| e.to_string());
+        let g = &preset.grid;
+        let grid = PresetGrid {
+            w1: axis(&g.w1),
+            w2: axis(&g.w2),
+            agents_per_cell: g.agents_per_cell,
+            epochs: g.epochs,
+        };
+        Ok((grid, override_problem))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_presets_resolve_and_unknown_ones_are_named() {
+        let spec = SweepSpec::from_toml(
+            "robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\nppo = { learning_rate = 3e-4 }\n",
+        )
+        .unwrap();
+        let r = resolve(&spec).unwrap();
+        assert_eq!(r.cell_count(), 28, "Table 1: 4 x 7");
+        let bad = SweepSpec::from_toml(
+            "robot = \"nosuch\"\nterrains = [\"flat\"]\npreset_grid = true\nppo = { bogus = 1.0 }\n",
+        )
+        .unwrap();
+        let e = resolve(&bad).unwrap_err().to_string();
+        assert!(e.contains("known robots: anymal, heavy"), "{e}");
+        let bad_ppo = SweepSpec::from_toml(
+            "robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\nppo = { bogus = 1.0 }\n",
+        )
+        .unwrap();
+        assert!(resolve(&bad_ppo).unwrap_err().to_string().contains("bogus"));
+    }
+}

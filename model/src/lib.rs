@@ -1,0 +1,14 @@
+//! gaitsweep-model: the plain domain types every other crate shares, with serde and no
+//! simulation, network or libtorch: the gait score, the terrain kinds, and the robot preset
+//! files (`robots/<name>/preset.toml`, read with their `base` chain). The coordinator links
+//! this crate, not the simulator.
+
+pub mod error;
+pub mod preset;
+pub mod score;
+pub mod terrain;
+
+pub use error::{Error, Result};
+pub use preset::{GridSpec, PpoConfig, PresetFile};
+pub use score::GaitScore;
+pub use terrain::TerrainKind;
