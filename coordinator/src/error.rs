@@ -75,7 +75,8 @@ impl Error {
     pub fn is_disk_full(&self) -> bool {
         match self {
             Error::Io { source, .. } => {
-                source.kind() == std::io::ErrorKind::StorageFull || source.raw_os_error() == Some(28)
+                source.kind() == std::io::ErrorKind::StorageFull
+                    || source.raw_os_error() == Some(28)
             }
             // SQLITE_FULL (13): "database or disk is full".
             Error::Db(sqlx::Error::Database(d)) => d.code().as_deref() == Some("13"),
@@ -150,7 +151,11 @@ mod tests {
         assert!(s.message().contains("disk is full"), "{}", s.message());
         let too_large = tonic::Status::from(Error::TooLarge { size: 2, limit: 1 });
         assert_eq!(too_large.code(), tonic::Code::ResourceExhausted);
-        assert_eq!(reason::of(&too_large), None, "a too-large upload is not retried");
+        assert_eq!(
+            reason::of(&too_large),
+            None,
+            "a too-large upload is not retried"
+        );
     }
 
     /// The daemon recognises an unknown worker by a reason key, not by the message text.

@@ -105,7 +105,10 @@ mod tests {
             assert!(score(&s).unwrap_err().to_string().contains("score.score"));
             let mut s = good();
             s.cost_of_transport = bad;
-            assert!(score(&s).unwrap_err().to_string().contains("cost_of_transport"));
+            assert!(score(&s)
+                .unwrap_err()
+                .to_string()
+                .contains("cost_of_transport"));
         }
     }
 

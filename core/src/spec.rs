@@ -512,7 +512,11 @@ mod tests {
             .resolve_with(ok)
             .unwrap_err();
         let all = err.to_string();
-        for needle in ["w2.count is 1000000000000", "w2 runs from min -2 down to max -6", "w1 -1 is negative"] {
+        for needle in [
+            "w2.count is 1000000000000",
+            "w2 runs from min -2 down to max -6",
+            "w1 -1 is negative",
+        ] {
             assert!(all.contains(needle), "{needle} not in {all}");
         }
     }
@@ -521,7 +525,10 @@ mod tests {
     #[test]
     fn defaults_are_decided_at_resolution() {
         let base = "robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\n";
-        let r = SweepSpec::from_toml(base).unwrap().resolve_with(ok).unwrap();
+        let r = SweepSpec::from_toml(base)
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap();
         assert_eq!(r.checkpoint_every, crate::defaults::CHECKPOINT_EVERY);
         assert_eq!(r.eval_robots, crate::defaults::EVAL_ROBOTS);
         assert_eq!(r.eval_seconds, crate::defaults::EVAL_SECONDS);
@@ -529,13 +536,20 @@ mod tests {
             .unwrap()
             .resolve_with(ok)
             .unwrap();
-        assert_eq!(only_final.checkpoint_every, 3000, "only the final checkpoint");
+        assert_eq!(
+            only_final.checkpoint_every, 3000,
+            "only the final checkpoint"
+        );
         let mut old = r.clone();
         (old.checkpoint_every, old.eval_robots, old.eval_seconds) = (0, 0, 0.0);
         let old = old.with_defaults();
         assert_eq!(
             (old.checkpoint_every, old.eval_robots, old.eval_seconds),
-            (3000, crate::defaults::EVAL_ROBOTS, crate::defaults::EVAL_SECONDS)
+            (
+                3000,
+                crate::defaults::EVAL_ROBOTS,
+                crate::defaults::EVAL_SECONDS
+            )
         );
     }
 

@@ -26,4 +26,3 @@ pub struct GaitScore {
     /// Robots scored.
     pub robots: usize,
 }
-

@@ -260,7 +260,20 @@ impl Agent {
                 < 0.35 * p.nominal_base_height;
         let timeout = !fell && self.step_in_episode >= max_steps;
         if fell && std::env::var_os("DBG_FALLS").is_some() {
-            eprintln!("FALL step {} contact {} gz {:.2} h {:.3} cmd {:.2} vh {:.2} {:.2} q {:?}", self.step_in_episode, self.world.base_contact(), grav_b.z, base.pos.z - self.world.tile().height(base.pos.x, base.pos.y), self.cmd.speed, vh.x, vh.y, self.q.iter().map(|v| (v*100.0).round()/100.0).collect::<Vec<_>>());
+            eprintln!(
+                "FALL step {} contact {} gz {:.2} h {:.3} cmd {:.2} vh {:.2} {:.2} q {:?}",
+                self.step_in_episode,
+                self.world.base_contact(),
+                grav_b.z,
+                base.pos.z - self.world.tile().height(base.pos.x, base.pos.y),
+                self.cmd.speed,
+                vh.x,
+                vh.y,
+                self.q
+                    .iter()
+                    .map(|v| (v * 100.0).round() / 100.0)
+                    .collect::<Vec<_>>()
+            );
         }
 
         let inp = RewardInput {

@@ -15,11 +15,11 @@ pub mod score;
 pub mod terrain;
 pub mod urdf;
 
-/// The shared plain types (gait score, terrain kinds, preset files).
-pub use gaitsweep_model as model;
 pub use env::{EnvConfig, EnvMode, StepResult, VecEnv};
 pub use error::{Error, Result};
 pub use eval::{evaluate, EvalConfig};
+/// The shared plain types (gait score, terrain kinds, preset files).
+pub use gaitsweep_model as model;
 pub use preset::{GridSpec, PpoConfig, Preset};
 pub use score::GaitScore;
 pub use terrain::TerrainKind;

@@ -1,7 +1,6 @@
 //! The gait score (paper Eq. 4, our reading in DESIGN.md) and the locomotion metrics
 //! recorded beside it.
 
-
 pub use gaitsweep_model::GaitScore;
 
 /// One robot's per-step quantities for the score.

@@ -15,7 +15,6 @@ use std::sync::Arc;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-
 /// Side of one legged_gym sub-tile (m).
 pub const SUB_TILE: f32 = 8.0;
 /// Side of the tile a robot lives on (m).

@@ -178,8 +178,20 @@ async fn a_ca_certificate_as_server_certificate_is_named_not_retried() {
     openssl(
         &certs,
         &[
-            "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "self.key", "-out",
-            "self.pem", "-days", "2", "-subj", "/CN=localhost", "-addext",
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-keyout",
+            "self.key",
+            "-out",
+            "self.pem",
+            "-days",
+            "2",
+            "-subj",
+            "/CN=localhost",
+            "-addext",
             "subjectAltName=DNS:localhost,IP:127.0.0.1",
         ],
     );
@@ -198,12 +210,21 @@ async fn a_ca_certificate_as_server_certificate_is_named_not_retried() {
     let port = coord.addr.rsplit(':').next().unwrap().to_string();
     let url = format!("https://localhost:{port}");
     let out = Command::new(bin("coordinator"))
-        .args(["list", "--connect", &url, "--tls-ca", cert.to_str().unwrap()])
+        .args([
+            "list",
+            "--connect",
+            &url,
+            "--tls-ca",
+            cert.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
-    assert!(err.contains("CA:FALSE") && !err.contains("is it running"), "{err}");
+    assert!(
+        err.contains("CA:FALSE") && !err.contains("is it running"),
+        "{err}"
+    );
 
     let mut worker = Proc::spawn(
         "worker",
@@ -217,10 +238,14 @@ async fn a_ca_certificate_as_server_certificate_is_named_not_retried() {
         ],
         tmp.path().join("worker.log"),
     );
-    let status = wait_for("the worker to give up", std::time::Duration::from_secs(30), || {
-        let s = worker.child.try_wait().ok().flatten();
-        async move { s }
-    })
+    let status = wait_for(
+        "the worker to give up",
+        std::time::Duration::from_secs(30),
+        || {
+            let s = worker.child.try_wait().ok().flatten();
+            async move { s }
+        },
+    )
     .await;
     let log = worker.log_text();
     assert!(!status.success(), "{log}");

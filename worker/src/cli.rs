@@ -11,44 +11,13 @@ use clap::Args;
 use gaitsweep_sim::{EnvConfig, Preset, TerrainKind, VecEnv};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::ppo::{Ppo, Runner};
-use crate::train::{self, CellRunConfig, EpochMetrics, SimEnv, TrainObserver, TrainOptions};
 use crate::{Error, Result};
+use gaitsweep_trainer::ppo::{Ppo, Runner};
+use gaitsweep_trainer::train::{
+    self, CellRunConfig, EpochMetrics, SimEnv, TrainObserver, TrainOptions,
+};
 
-/// Parses `cpu`, `cuda` or `cuda:N`; refuses CUDA where libtorch sees no GPU.
-pub fn parse_device(s: &str) -> Result<tch::Device> {
-    let dev = match s {
-        "cpu" => tch::Device::Cpu,
-        "cuda" => tch::Device::Cuda(0),
-        _ => match s.strip_prefix("cuda:").and_then(|n| n.parse().ok()) {
-            Some(n) => tch::Device::Cuda(n),
-            None => {
-                return Err(Error::Config(format!(
-                    "unknown device {s:?} (cpu, cuda, cuda:N)"
-                )))
-            }
-        },
-    };
-    if let tch::Device::Cuda(n) = dev {
-        let have = tch::Cuda::device_count();
-        if n as i64 >= have {
-            return Err(Error::Config(format!(
-                "device {s} requested but libtorch sees {have} CUDA devices"
-            )));
-        }
-    }
-    Ok(dev)
-}
-
-/// libtorch threads when none are asked for. One: the simulation's rayon threads run
-/// between the learner's calls, and OpenMP barriers with as many threads as cores collapse
-/// as soon as anything else runs (measured 1.0 s vs 6.5 s per epoch, BENCHMARKS.md).
-pub const DEFAULT_TORCH_THREADS: usize = 1;
-
-/// Sets libtorch's intra-op threads (default [`DEFAULT_TORCH_THREADS`]).
-pub fn configure_threads(threads: Option<usize>) {
-    tch::set_num_threads(threads.unwrap_or(DEFAULT_TORCH_THREADS).max(1) as i32);
-}
+pub use gaitsweep_trainer::device::{configure_threads, parse_device, DEFAULT_TORCH_THREADS};
 
 fn parse_overrides(sets: &[String]) -> Result<BTreeMap<String, f64>> {
     sets.iter()
@@ -211,7 +180,11 @@ pub fn train(a: TrainArgs) -> Result<()> {
         eval_seconds: a.eval_seconds,
     };
     let start = match &cfg.resume_from {
-        Some(p) => crate::checkpoint::Checkpoint::load(p)?.meta.epoch,
+        Some(p) => {
+            gaitsweep_trainer::checkpoint::Checkpoint::load(p)?
+                .meta
+                .epoch
+        }
         None => 0,
     };
     let mut obs = LocalObserver::new(&cfg.out_dir, start, cfg.epochs, a.quiet)?;
@@ -242,7 +215,7 @@ pub struct ExportArgs {
 
 /// Runs `worker export`.
 pub fn export(a: ExportArgs) -> Result<()> {
-    let ckpt = crate::checkpoint::Checkpoint::load(&a.checkpoint)?;
+    let ckpt = gaitsweep_trainer::checkpoint::Checkpoint::load(&a.checkpoint)?;
     // The action mapping comes from the preset, when it is still the one trained with.
     let control = match Preset::load(&ckpt.meta.robot) {
         Ok(p) if p.digest == ckpt.meta.preset_digest => Some(train::control_info(&p)),
@@ -251,7 +224,7 @@ pub fn export(a: ExportArgs) -> Result<()> {
             None
         }
     };
-    let files = crate::export::export(&a.checkpoint, &a.out, control)?;
+    let files = gaitsweep_trainer::export::export(&a.checkpoint, &a.out, control)?;
     println!(
         "{}\n{}\n{}",
         files.torchscript.display(),

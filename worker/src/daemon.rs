@@ -5,11 +5,13 @@
 //! network and nothing is lost; a re-leased cell resumes from the checkpoint its lease
 //! names.
 
-use crate::train::{train_cell, CellOutcome, CellRunConfig, EpochMetrics, TrainObserver};
 use crate::{Error, Result};
-use gaitsweep_core::reason;
 use gaitsweep_core::pb::{self, worker_service_client::WorkerServiceClient};
+use gaitsweep_core::reason;
 use gaitsweep_core::{bearer, AUTH_HEADER};
+use gaitsweep_trainer::train::{
+    train_cell, CellOutcome, CellRunConfig, EpochMetrics, TrainObserver,
+};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::future::Future;
@@ -628,8 +630,14 @@ async fn deliver(
                     })
                     .await
                     {
-                        Ok(r) => tracing::info!(lease, requeued = r.requeued, "cell stopped and given back; it resumes from its uploaded checkpoint"),
-                        Err(s) => tracing::warn!(lease, code = ?s.code(), error = %s.message(), "cell stopped; could not give it back, its lease will expire"),
+                        Ok(r) => tracing::info!(
+                            lease,
+                            requeued = r.requeued,
+                            "cell stopped and given back; it resumes from its uploaded checkpoint"
+                        ),
+                        Err(s) => {
+                            tracing::warn!(lease, code = ?s.code(), error = %s.message(), "cell stopped; could not give it back, its lease will expire")
+                        }
                     }
                     return Ok(());
                 }
@@ -765,7 +773,9 @@ mod tests {
     fn a_full_coordinator_disk_is_retried_a_too_large_upload_is_not() {
         let full = reason::with(Status::resource_exhausted("disk full"), reason::DISK_FULL);
         assert!(transient(&full));
-        assert!(!transient(&Status::resource_exhausted("checkpoint too large")));
+        assert!(!transient(&Status::resource_exhausted(
+            "checkpoint too large"
+        )));
         assert!(transient(&Status::unavailable("connection refused")));
     }
 

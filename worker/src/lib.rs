@@ -1,14 +1,10 @@
-//! gaitsweep worker: trains one PPO policy per grid cell on the rapier simulation with
-//! libtorch, locally (`worker train`) or for a coordinator (`worker --connect URL`).
+//! gaitsweep worker: the `worker` command line (`worker train`, `eval`, `render`,
+//! `export`, `bench-train`) and the daemon that trains cells for a coordinator
+//! (`worker --connect URL`). Training itself is the `gaitsweep-trainer` library.
 
-pub mod checkpoint;
 pub mod cli;
 pub mod daemon;
-pub mod error;
 pub mod evaluate;
-pub mod export;
-pub mod ppo;
 pub mod render;
-pub mod train;
 
-pub use error::{Error, Result};
+pub use gaitsweep_trainer::{Error, Result};

@@ -1,6 +1,6 @@
 //! `worker render`: an animated GIF of a checkpoint's gait. The policy is restored with
-//! the trainer's own code ([`crate::evaluate::load_policy`]) and driven with its
-//! deterministic action ([`crate::ppo::Ppo::act_deterministic`]: normalised observation,
+//! the trainer's own code ([`gaitsweep_trainer::evaluate::load_policy`]) and driven with its
+//! deterministic action ([`gaitsweep_trainer::ppo::Ppo::act_deterministic`]: normalised observation,
 //! action mean), exactly as the scoring rollout does; one robot walks on the checkpoint's
 //! terrain and a frame is drawn by `gaitsweep_sim::render` every few policy steps.
 
@@ -10,9 +10,9 @@ use clap::Args;
 use gaitsweep_sim::render::write_gif;
 use gaitsweep_sim::{EnvConfig, TerrainKind, VecEnv};
 
-use crate::evaluate::{check_dims, load_policy, LoadedPolicy};
-use crate::train::CURRICULUM_EVAL_DIFFICULTY;
 use crate::{Error, Result};
+use gaitsweep_trainer::evaluate::{check_dims, load_policy, LoadedPolicy};
+use gaitsweep_trainer::train::CURRICULUM_EVAL_DIFFICULTY;
 
 /// `worker render`: a GIF of a checkpoint's deterministic gait.
 #[derive(Args, Debug, Clone)]

@@ -79,7 +79,9 @@ impl SqliteStore {
                     conn.ping().await?;
                     let healthy = !conn.is_in_transaction();
                     if !healthy {
-                        tracing::warn!("writer connection left inside a failed transaction; opening a new one");
+                        tracing::warn!(
+                            "writer connection left inside a failed transaction; opening a new one"
+                        );
                     }
                     Ok(healthy)
                 })
@@ -215,7 +217,10 @@ async fn lease_cell(tx: &mut Tx, lease: LeaseId) -> Result<LeaseCell> {
 /// Refuses reports for cells that are finished, cancelled or failed for good (a late
 /// report must not revive a failed cell).
 fn refuse_closed(cell: CellId, state: CellState) -> Result<()> {
-    if matches!(state, CellState::Done | CellState::Cancelled | CellState::Failed) {
+    if matches!(
+        state,
+        CellState::Done | CellState::Cancelled | CellState::Failed
+    ) {
         return Err(Error::CellClosed {
             cell,
             state: state.to_string(),

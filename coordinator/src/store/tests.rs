@@ -205,7 +205,10 @@ async fn the_writer_recovers_after_the_disk_was_full() {
         .unwrap();
     let mut full = None;
     for _ in 0..200 {
-        if let Err(e) = store.create_sweep(&spec(30, 30, vec![TerrainKind::Flat]), 1).await {
+        if let Err(e) = store
+            .create_sweep(&spec(30, 30, vec![TerrainKind::Flat]), 1)
+            .await
+        {
             full = Some(e.to_string());
             break;
         }
@@ -276,7 +279,13 @@ async fn released_attempts_requeue_at_once_and_do_not_count() {
     for i in 0..5 {
         let g = store.lease_next(&w, 0, i).await.unwrap().expect("lease");
         let out = store
-            .end_attempt(g.lease, AttemptEnd::Released, "released: worker stopping", 2, i)
+            .end_attempt(
+                g.lease,
+                AttemptEnd::Released,
+                "released: worker stopping",
+                2,
+                i,
+            )
             .await
             .unwrap();
         assert_eq!(out.cell.state, CellState::Queued, "release {i}");
@@ -291,7 +300,11 @@ async fn released_attempts_requeue_at_once_and_do_not_count() {
             .unwrap();
         assert_eq!(
             out.cell.state,
-            if i == 0 { CellState::Queued } else { CellState::Failed }
+            if i == 0 {
+                CellState::Queued
+            } else {
+                CellState::Failed
+            }
         );
     }
     let released: i64 =
@@ -317,7 +330,13 @@ async fn reports_outside_the_cell_are_refused_and_change_nothing() {
     ));
     let g = store.lease_next(&w, 0, 1).await.unwrap().unwrap();
     let m = |v: f64| -> BTreeMap<String, f64> { [("kl".to_string(), v)].into() };
-    for (epoch, v) in [(u32::MAX, 1.0), (0, 1.0), (4, 1.0), (1, f64::NAN), (1, f64::INFINITY)] {
+    for (epoch, v) in [
+        (u32::MAX, 1.0),
+        (0, 1.0),
+        (4, 1.0),
+        (1, f64::NAN),
+        (1, f64::INFINITY),
+    ] {
         assert!(
             matches!(
                 store.record_progress(g.lease, &[(epoch, m(v))]).await,
@@ -355,7 +374,10 @@ async fn reports_outside_the_cell_are_refused_and_change_nothing() {
         Err(Error::BadRequest(_))
     ));
     let cell = &store.cells(sweep.id).await.unwrap()[0];
-    assert_eq!((cell.state, cell.score.is_none()), (CellState::Running, true));
+    assert_eq!(
+        (cell.state, cell.score.is_none()),
+        (CellState::Running, true)
+    );
     store
         .report_result(g.lease, &score(0.5), 3, None, 2)
         .await

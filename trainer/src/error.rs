@@ -1,8 +1,8 @@
-//! The worker library's error type.
+//! The trainer library's error type.
 
 use std::path::PathBuf;
 
-/// Errors of the worker library.
+/// Errors of the trainer library.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// The simulation failed (bad preset, URDF, terrain, ...).
@@ -66,7 +66,7 @@ impl Error {
     }
 }
 
-/// Result alias of the worker library.
+/// Result alias of the trainer library.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 impl From<gaitsweep_sim::model::Error> for Error {

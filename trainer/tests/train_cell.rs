@@ -5,9 +5,9 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use gaitsweep_sim::TerrainKind;
-use gaitsweep_worker::checkpoint::Checkpoint;
-use gaitsweep_worker::evaluate::{eval, EvalArgs};
-use gaitsweep_worker::train::{train_cell, CellRunConfig, EpochMetrics, TrainObserver};
+use gaitsweep_trainer::checkpoint::Checkpoint;
+use gaitsweep_trainer::evaluate::{eval, EvalOptions};
+use gaitsweep_trainer::train::{train_cell, CellRunConfig, EpochMetrics, TrainObserver};
 
 #[derive(Default)]
 struct Collect {
@@ -53,7 +53,7 @@ fn cfg(out: &Path, epochs: u32, resume: Option<PathBuf>) -> CellRunConfig {
 }
 
 fn weights(path: &Path) -> Vec<(String, Vec<u8>)> {
-    let (tensors, _) = gaitsweep_worker::checkpoint::read_safetensors(path).unwrap();
+    let (tensors, _) = gaitsweep_trainer::checkpoint::read_safetensors(path).unwrap();
     tensors
         .into_iter()
         .map(|(k, t)| {
@@ -110,8 +110,8 @@ fn train_cell_on_simulator_and_resume() {
     assert!(score["track"].is_number() && score["fall_rate"].is_number());
 
     // `worker eval` on the final checkpoint is the scoring rollout itself.
-    let eval_args = EvalArgs {
-        checkpoint: out.final_checkpoint.clone(),
+    let ckpt = out.final_checkpoint.clone();
+    let eval_args = EvalOptions {
         terrain: None,
         difficulty: None,
         robots: 2,
@@ -119,18 +119,24 @@ fn train_cell_on_simulator_and_resume() {
         seed: None,
         noise: 0.0,
     };
-    assert_eq!(eval(&eval_args).unwrap(), out.score);
-    let noisy = eval(&EvalArgs {
-        noise: 1.0,
-        ..eval_args.clone()
-    })
+    assert_eq!(eval(&ckpt, &eval_args).unwrap(), out.score);
+    let noisy = eval(
+        &ckpt,
+        &EvalOptions {
+            noise: 1.0,
+            ..eval_args.clone()
+        },
+    )
     .unwrap();
     assert!(noisy.score.is_finite() && noisy != out.score, "{noisy:?}");
     // A flat-ground policy has no height scan: refused on rough, with the reason.
-    let e = eval(&EvalArgs {
-        terrain: Some(TerrainKind::Rough),
-        ..eval_args
-    })
+    let e = eval(
+        &ckpt,
+        &EvalOptions {
+            terrain: Some(TerrainKind::Rough),
+            ..eval_args
+        },
+    )
     .unwrap_err()
     .to_string();
     assert!(e.contains("obs/act dims 48/12 (trained on flat)"), "{e}");
@@ -202,7 +208,7 @@ fn stop_request_writes_a_checkpoint_first() {
     )
     .unwrap_err();
     match e {
-        gaitsweep_worker::Error::Stopped { epoch, checkpoint } => {
+        gaitsweep_trainer::Error::Stopped { epoch, checkpoint } => {
             assert_eq!(epoch, 1);
             assert_eq!(Checkpoint::load(&checkpoint).unwrap().meta.epoch, 1);
         }

@@ -3,8 +3,8 @@
 
 use std::time::Instant;
 
-use gaitsweep_worker::ppo::toy::PointMass;
-use gaitsweep_worker::ppo::{Ppo, PpoParams, Runner};
+use gaitsweep_trainer::ppo::toy::PointMass;
+use gaitsweep_trainer::ppo::{Ppo, PpoParams, Runner};
 use tch::Device;
 
 /// Small networks and rollouts: the task is easy, the budget is seconds.
@@ -65,7 +65,7 @@ struct Poisoned {
     obs: Vec<f32>,
 }
 
-impl gaitsweep_worker::ppo::VecEnvLike for Poisoned {
+impl gaitsweep_trainer::ppo::VecEnvLike for Poisoned {
     fn num_envs(&self) -> usize {
         self.inner.num_envs()
     }
@@ -75,13 +75,13 @@ impl gaitsweep_worker::ppo::VecEnvLike for Poisoned {
     fn act_dim(&self) -> usize {
         2
     }
-    fn reseed(&mut self, seed: u64) -> gaitsweep_worker::Result<Vec<f32>> {
+    fn reseed(&mut self, seed: u64) -> gaitsweep_trainer::Result<Vec<f32>> {
         self.inner.reseed(seed)
     }
     fn step(
         &mut self,
         actions: &[f32],
-    ) -> gaitsweep_worker::Result<gaitsweep_worker::ppo::StepView<'_>> {
+    ) -> gaitsweep_trainer::Result<gaitsweep_trainer::ppo::StepView<'_>> {
         self.steps += 1;
         let mut v = self.inner.step(actions)?;
         if self.steps == self.at {

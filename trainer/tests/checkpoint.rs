@@ -4,12 +4,12 @@
 
 use std::path::Path;
 
-use gaitsweep_worker::checkpoint::{
+use gaitsweep_trainer::checkpoint::{
     self, Checkpoint, CheckpointMeta, NormalizerMeta, OptimizerMeta, RngMeta,
 };
-use gaitsweep_worker::export::{export, ExportedActor};
-use gaitsweep_worker::ppo::toy::PointMass;
-use gaitsweep_worker::ppo::{Ppo, PpoParams, Runner};
+use gaitsweep_trainer::export::{export, ExportedActor};
+use gaitsweep_trainer::ppo::toy::PointMass;
+use gaitsweep_trainer::ppo::{Ppo, PpoParams, Runner};
 use tch::{Device, Kind, Tensor};
 
 const EVERY: u32 = 3;
