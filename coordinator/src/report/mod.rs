@@ -17,10 +17,12 @@
 mod html;
 mod plots;
 
+use crate::store::rows::{CellRow, CELL_COLUMNS};
 use anyhow::Context;
+use gaitsweep_core::records::CellRecord;
 use gaitsweep_model::GaitScore;
 use sqlx::sqlite::{SqliteConnectOptions, SqlitePoolOptions};
-use sqlx::Row;
+use sqlx::{FromRow, Row};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -220,67 +222,44 @@ pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportDat
         .fetch_optional(db)
         .await?
         .with_context(|| format!("no sweep {sweep} in this database"))?;
-    let spec: serde_json::Value =
-        serde_json::from_str(row.try_get("spec_json")?).unwrap_or_default();
-    let floats = |k: &str| -> Vec<f64> {
-        spec.get(k)
-            .and_then(|v| v.as_array())
-            .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
-            .unwrap_or_default()
-    };
+    let spec = crate::store::rows::spec_of(row.try_get("spec_json")?)?;
     let mut data = ReportData {
         sweep_id: row.try_get("id")?,
         name: row.try_get("name")?,
         robot: row.try_get("robot")?,
         state: row.try_get("state")?,
-        difficulty: spec
-            .get("difficulty")
-            .and_then(|d| d.as_u64())
-            .map(|d| d as u8),
-        terrains: spec
-            .get("terrains")
-            .and_then(|v| v.as_array())
-            .map(|a| {
-                a.iter()
-                    .filter_map(|x| x.as_str().map(String::from))
-                    .collect()
-            })
-            .unwrap_or_default(),
-        w1_values: floats("w1_values"),
-        w2_values: floats("w2_values"),
+        difficulty: spec.difficulty,
+        terrains: spec.terrains.iter().map(|t| t.to_string()).collect(),
+        w1_values: spec.w1_values.clone(),
+        w2_values: spec.w2_values.clone(),
         cells: Vec::new(),
         promotions: Vec::new(),
     };
 
-    let rows = sqlx::query(
-        "SELECT c.id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, c.state, c.attempts, \
-         c.epochs_done, c.last_error, s.score, s.track, s.effort, s.tilt, s.progress, s.fall_rate, \
-         s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots, \
-         COALESCE(fk.path, lk.path) AS ckpt_path \
+    let sql = format!(
+        "SELECT {CELL_COLUMNS}, COALESCE(fk.path, lk.path) AS ckpt_path \
          FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
          LEFT JOIN checkpoints fk ON fk.sha256 = s.final_checkpoint_sha256 \
          LEFT JOIN checkpoints lk ON lk.sha256 = c.last_checkpoint_sha256 \
-         WHERE c.sweep_id = ? ORDER BY c.terrain_index, c.w1_index, c.w2_index",
-    )
-    .bind(sweep)
-    .fetch_all(db)
-    .await?;
-    for r in &rows {
-        let score = crate::store::sqlite::score_from_row(r)?;
+         WHERE c.sweep_id = ? ORDER BY c.terrain_index, c.w1_index, c.w2_index"
+    );
+    for r in sqlx::query(&sql).bind(sweep).fetch_all(db).await? {
+        let checkpoint: Option<String> = r.try_get("ckpt_path")?;
+        let c: CellRecord = CellRow::from_row(&r)?.try_into()?;
         data.cells.push(ReportCell {
-            id: r.try_get("id")?,
-            terrain_index: r.try_get::<i64, _>("terrain_index")? as usize,
-            terrain: r.try_get("terrain")?,
-            w1_index: r.try_get::<i64, _>("w1_index")? as usize,
-            w2_index: r.try_get::<i64, _>("w2_index")? as usize,
-            w1: r.try_get("w1")?,
-            w2: r.try_get("w2")?,
-            state: r.try_get("state")?,
-            attempts: r.try_get::<i64, _>("attempts")? as u32,
-            epochs_done: r.try_get::<i64, _>("epochs_done")? as u32,
-            last_error: r.try_get("last_error")?,
-            score,
-            checkpoint: r.try_get("ckpt_path")?,
+            id: c.id.0,
+            terrain_index: c.terrain_index as usize,
+            terrain: c.terrain,
+            w1_index: c.w1_index as usize,
+            w2_index: c.w2_index as usize,
+            w1: c.w1,
+            w2: c.w2,
+            state: c.state.to_string(),
+            attempts: c.attempts,
+            epochs_done: c.epochs_done,
+            last_error: c.last_error,
+            score: c.score,
+            checkpoint,
             curves: BTreeMap::new(),
         });
     }

@@ -1,6 +1,7 @@
 //! Storage behind one trait: everything the coordinator persists. The SQLite
 //! implementation is [`sqlite::SqliteStore`].
 
+pub mod rows;
 pub mod sqlite;
 #[cfg(test)]
 mod tests;

@@ -1,18 +1,19 @@
 //! The SQLite implementation of [`Store`]: WAL, one writer connection whose transactions
 //! start with `BEGIN IMMEDIATE` (so they never fail on a busy snapshot), a pool of readers.
 
+use super::rows::{spec_of, CellRow, SweepRow, CELL_COLUMNS, SWEEP_COLUMNS};
 use super::{
     AttemptEnd, AttemptOutcome, LeaseGrant, ResultOutcome, RunningLease, Store, WorkerInfo,
 };
 use crate::sched::{self, Candidate};
 use crate::{validate, Error, Result};
 use gaitsweep_core::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
-use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, SweepId, SweepState, WorkerId};
+use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, SweepId, WorkerId};
 use gaitsweep_model::GaitScore;
 use sqlx::sqlite::{
     SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous,
 };
-use sqlx::{Connection, Row, Sqlite, SqliteConnection, SqlitePool, Transaction};
+use sqlx::{Connection, FromRow, Row, Sqlite, SqliteConnection, SqlitePool, Transaction};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::str::FromStr;
@@ -29,19 +30,6 @@ pub struct SqliteStore {
 }
 
 type Tx = Transaction<'static, Sqlite>;
-
-const CELL_COLUMNS: &str =
-    "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, \
-     c.seed, c.state, c.attempts, c.epochs_done, c.last_error, s.score, s.track, s.effort, s.tilt, \
-     s.progress, s.fall_rate, s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots";
-
-const SWEEP_COLUMNS: &str = "w.id, w.spec_json, w.state, w.created_unix_ms, \
-     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id) AS total, \
-     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'queued') AS queued, \
-     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'running') AS running, \
-     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'done') AS done, \
-     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'failed') AS failed, \
-     (SELECT p.cell_id FROM promotions p WHERE p.sweep_id = w.id AND p.terrain = '' ORDER BY p.id DESC LIMIT 1) AS best";
 
 impl SqliteStore {
     /// Opens (creating if needed) the database file and applies the migrations.
@@ -106,60 +94,12 @@ impl SqliteStore {
     }
 }
 
-/// The score columns of a row joined with `scores` (`None` when the cell has no score).
-pub fn score_from_row(r: &SqliteRow) -> std::result::Result<Option<GaitScore>, sqlx::Error> {
-    let Some(score) = r.try_get::<Option<f64>, _>("score")? else {
-        return Ok(None);
-    };
-    Ok(Some(GaitScore {
-        score,
-        track: r.try_get("track")?,
-        effort: r.try_get("effort")?,
-        tilt: r.try_get("tilt")?,
-        progress: r.try_get("progress")?,
-        fall_rate: r.try_get("fall_rate")?,
-        mean_vel_error: r.try_get("mean_vel_error")?,
-        mean_abs_torque: r.try_get("mean_abs_torque")?,
-        cost_of_transport: r.try_get("cost_of_transport")?,
-        robots: r.try_get::<i64, _>("robots")? as usize,
-    }))
-}
-
 fn cell_from_row(r: &SqliteRow) -> Result<CellRecord> {
-    let score = score_from_row(r)?;
-    Ok(CellRecord {
-        id: CellId(r.try_get("id")?),
-        sweep_id: SweepId(r.try_get("sweep_id")?),
-        terrain_index: r.try_get::<i64, _>("terrain_index")? as u32,
-        terrain: r.try_get("terrain")?,
-        w1_index: r.try_get::<i64, _>("w1_index")? as u32,
-        w2_index: r.try_get::<i64, _>("w2_index")? as u32,
-        w1: r.try_get("w1")?,
-        w2: r.try_get("w2")?,
-        seed: r.try_get::<i64, _>("seed")? as u64,
-        state: CellState::from_str(r.try_get("state")?)?,
-        attempts: r.try_get::<i64, _>("attempts")? as u32,
-        epochs_done: r.try_get::<i64, _>("epochs_done")? as u32,
-        score,
-        last_error: r.try_get("last_error")?,
-    })
+    CellRow::from_row(r)?.try_into()
 }
 
 fn sweep_from_row(r: &SqliteRow) -> Result<SweepRecord> {
-    let spec = serde_json::from_str::<ResolvedSpec>(r.try_get("spec_json")?)?.with_defaults();
-    let n = |name: &str| -> Result<u32> { Ok(r.try_get::<i64, _>(name)? as u32) };
-    Ok(SweepRecord {
-        id: SweepId(r.try_get("id")?),
-        spec,
-        state: SweepState::from_str(r.try_get("state")?)?,
-        created_unix_ms: r.try_get("created_unix_ms")?,
-        cells_total: n("total")?,
-        cells_queued: n("queued")?,
-        cells_running: n("running")?,
-        cells_done: n("done")?,
-        cells_failed: n("failed")?,
-        best_cell: r.try_get::<Option<i64>, _>("best")?.map(CellId),
-    })
+    SweepRow::from_row(r)?.try_into()
 }
 
 async fn cell_tx(tx: &mut Tx, id: CellId) -> Result<CellRecord> {
@@ -516,7 +456,7 @@ impl Store for SqliteStore {
         Ok(Some(LeaseGrant {
             lease: LeaseId(lease),
             cell,
-            spec: serde_json::from_str::<ResolvedSpec>(&spec_json)?.with_defaults(),
+            spec: spec_of(&spec_json)?,
             resume,
         }))
     }

@@ -1,0 +1,173 @@
+//! The SQLite rows the coordinator reads, as `sqlx::FromRow` structs, and their one
+//! conversion to domain records. The store and the report both read through them, so a
+//! column is mapped in exactly one place.
+
+use crate::{Error, Result};
+use gaitsweep_core::records::{CellRecord, SweepRecord};
+use gaitsweep_core::{CellId, CellState, ResolvedSpec, SweepId, SweepState};
+use gaitsweep_model::GaitScore;
+use std::str::FromStr;
+
+/// The score columns of a cell joined with `scores` (all NULL for a cell without one).
+#[derive(Debug, Clone, sqlx::FromRow)]
+pub struct ScoreRow {
+    /// Composite score J.
+    pub score: Option<f64>,
+    /// Tracking term.
+    pub track: Option<f64>,
+    /// Effort term.
+    pub effort: Option<f64>,
+    /// Tilt term.
+    pub tilt: Option<f64>,
+    /// Progress term.
+    pub progress: Option<f64>,
+    /// Fraction of robots that fell.
+    pub fall_rate: Option<f64>,
+    /// Mean |v_cmd - v|.
+    pub mean_vel_error: Option<f64>,
+    /// Mean absolute torque.
+    pub mean_abs_torque: Option<f64>,
+    /// Cost of transport.
+    pub cost_of_transport: Option<f64>,
+    /// Robots evaluated.
+    pub robots: Option<i64>,
+}
+
+impl ScoreRow {
+    /// The gait score, if the cell has one.
+    pub fn into_score(self) -> Option<GaitScore> {
+        let v = |x: Option<f64>| x.unwrap_or(f64::NAN);
+        Some(GaitScore {
+            score: self.score?,
+            track: v(self.track),
+            effort: v(self.effort),
+            tilt: v(self.tilt),
+            progress: v(self.progress),
+            fall_rate: v(self.fall_rate),
+            mean_vel_error: v(self.mean_vel_error),
+            mean_abs_torque: v(self.mean_abs_torque),
+            cost_of_transport: v(self.cost_of_transport),
+            robots: self.robots.unwrap_or(0) as usize,
+        })
+    }
+}
+
+/// A `cells` row with its score ([`CELL_COLUMNS`]).
+#[derive(Debug, Clone, sqlx::FromRow)]
+pub struct CellRow {
+    /// Cell id.
+    pub id: i64,
+    /// Sweep id.
+    pub sweep_id: i64,
+    /// Index of the terrain in the sweep's list.
+    pub terrain_index: i64,
+    /// Terrain name.
+    pub terrain: String,
+    /// Row of the grid.
+    pub w1_index: i64,
+    /// Column of the grid.
+    pub w2_index: i64,
+    /// Velocity-tracking weight.
+    pub w1: f64,
+    /// log10 of the torque weight.
+    pub w2: f64,
+    /// The cell's seed (stored as a signed 64-bit integer).
+    pub seed: i64,
+    /// queued, running, done, failed, cancelled.
+    pub state: String,
+    /// Leases so far.
+    pub attempts: i64,
+    /// Epochs trained.
+    pub epochs_done: i64,
+    /// Last error.
+    pub last_error: Option<String>,
+    /// The score columns.
+    #[sqlx(flatten)]
+    pub score: ScoreRow,
+}
+
+/// The columns [`CellRow`] reads: `cells c LEFT JOIN scores s`.
+pub const CELL_COLUMNS: &str =
+    "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, \
+     c.seed, c.state, c.attempts, c.epochs_done, c.last_error, s.score, s.track, s.effort, s.tilt, \
+     s.progress, s.fall_rate, s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots";
+
+impl TryFrom<CellRow> for CellRecord {
+    type Error = Error;
+    fn try_from(r: CellRow) -> Result<Self> {
+        Ok(CellRecord {
+            id: CellId(r.id),
+            sweep_id: SweepId(r.sweep_id),
+            terrain_index: r.terrain_index as u32,
+            terrain: r.terrain,
+            w1_index: r.w1_index as u32,
+            w2_index: r.w2_index as u32,
+            w1: r.w1,
+            w2: r.w2,
+            seed: r.seed as u64,
+            state: CellState::from_str(&r.state)?,
+            attempts: r.attempts as u32,
+            epochs_done: r.epochs_done as u32,
+            score: r.score.into_score(),
+            last_error: r.last_error,
+        })
+    }
+}
+
+/// A `sweeps` row with its cell counts and best cell ([`SWEEP_COLUMNS`]).
+#[derive(Debug, Clone, sqlx::FromRow)]
+pub struct SweepRow {
+    /// Sweep id.
+    pub id: i64,
+    /// The resolved spec as JSON.
+    pub spec_json: String,
+    /// running, done, cancelled.
+    pub state: String,
+    /// Creation time.
+    pub created_unix_ms: i64,
+    /// Cells in total.
+    pub total: i64,
+    /// Cells queued.
+    pub queued: i64,
+    /// Cells running.
+    pub running: i64,
+    /// Cells done.
+    pub done: i64,
+    /// Cells failed.
+    pub failed: i64,
+    /// The promoted cell over all terrains.
+    pub best: Option<i64>,
+}
+
+/// The columns [`SweepRow`] reads: `sweeps w` with counts from `cells` and `promotions`.
+pub const SWEEP_COLUMNS: &str = "w.id, w.spec_json, w.state, w.created_unix_ms, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id) AS total, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'queued') AS queued, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'running') AS running, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'done') AS done, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'failed') AS failed, \
+     (SELECT p.cell_id FROM promotions p WHERE p.sweep_id = w.id AND p.terrain = '' ORDER BY p.id DESC LIMIT 1) AS best";
+
+/// The spec stored with a sweep, typed, with every default filled in (specs stored by
+/// earlier versions left some at 0).
+pub fn spec_of(spec_json: &str) -> Result<ResolvedSpec> {
+    Ok(serde_json::from_str::<ResolvedSpec>(spec_json)?.with_defaults())
+}
+
+impl TryFrom<SweepRow> for SweepRecord {
+    type Error = Error;
+    fn try_from(r: SweepRow) -> Result<Self> {
+        Ok(SweepRecord {
+            id: SweepId(r.id),
+            spec: spec_of(&r.spec_json)?,
+            state: SweepState::from_str(&r.state)?,
+            created_unix_ms: r.created_unix_ms,
+            cells_total: r.total as u32,
+            cells_queued: r.queued as u32,
+            cells_running: r.running as u32,
+            cells_done: r.done as u32,
+            cells_failed: r.failed as u32,
+            best_cell: r.best.map(CellId),
+        })
+    }
+}
