@@ -51,10 +51,6 @@ pub struct ControlConfig {
     /// the base and the feet, for measuring what the leg contacts cost).
     #[serde(default = "yes")]
     pub leg_collisions: bool,
-    /// Clamp each joint's PD target to the joint's URDF limits (default false: legged_gym
-    /// does not, and a policy may then press a joint into its stop at full torque).
-    #[serde(default)]
-    pub clamp_targets: bool,
     /// Episode length (s) during training.
     pub episode_seconds: f32,
 }

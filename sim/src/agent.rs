@@ -200,15 +200,9 @@ impl Agent {
         let ctl = &p.control;
         let clip = p.observation.clip;
         let mut targets = [0.0f32; NJ];
-        let limits = self.world.joint_limits();
         for k in 0..NJ {
             self.actions[k] = actions[k].clamp(-clip, clip);
             targets[k] = p.default_pose[k] + ctl.action_scale * self.actions[k];
-            // A target beyond the joint's stop only presses the joint into it at full
-            // torque; actuators keep their targets within the joint range.
-            if let (true, Some([lo, hi])) = (ctl.clamp_targets, limits[k]) {
-                targets[k] = targets[k].clamp(lo, hi);
-            }
         }
         let mut tau = [0.0f32; NJ];
         let (mut torque_sq, mut torque_norm, mut abs_torque, mut power) =
