@@ -1,0 +1,332 @@
+//! The report's pictures, drawn with plotters into PNG (bitmap backend) and SVG. Text is
+//! set in an embedded DejaVu Sans subset (assets/), so nothing depends on system fonts.
+
+use super::{slug, ReportCell, ReportData};
+use anyhow::Context;
+use plotters::coord::ranged1d::SegmentValue;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+use plotters::style::FontStyle;
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+
+/// DejaVu Sans (Latin-1 and a few symbols), see assets/FONT-LICENSE.txt.
+static FONT: &[u8] = include_bytes!("../../../assets/DejaVuSans-subset.ttf");
+const SANS: &str = "sans-serif";
+
+/// Registers the embedded font under every family name plotters asks for.
+pub fn register_fonts() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        for family in ["sans-serif", "serif", "monospace"] {
+            for style in [FontStyle::Normal, FontStyle::Bold] {
+                if plotters::style::register_font(family, style, FONT).is_err() {
+                    tracing::error!(
+                        "embedded font does not load: report pictures will have no text"
+                    );
+                }
+            }
+        }
+    });
+}
+
+/// Viridis-like colour of `t` in [0, 1] (dark purple to yellow).
+pub fn colormap(t: f64) -> RGBColor {
+    const STOPS: [(f64, [f64; 3]); 7] = [
+        (0.0, [68.0, 1.0, 84.0]),
+        (0.166, [68.0, 57.0, 131.0]),
+        (0.333, [49.0, 104.0, 142.0]),
+        (0.5, [33.0, 145.0, 140.0]),
+        (0.666, [53.0, 183.0, 121.0]),
+        (0.833, [144.0, 215.0, 67.0]),
+        (1.0, [253.0, 231.0, 37.0]),
+    ];
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let k = STOPS
+        .iter()
+        .position(|s| s.0 >= t)
+        .unwrap_or(STOPS.len() - 1)
+        .max(1);
+    let (a, b) = (STOPS[k - 1], STOPS[k]);
+    let f = ((t - a.0) / (b.0 - a.0)).clamp(0.0, 1.0);
+    let c = |i: usize| (a.1[i] + (b.1[i] - a.1[i]) * f).round() as u8;
+    RGBColor(c(0), c(1), c(2))
+}
+
+/// The largest font size up to `max` at which `text` fits `width` pixels (less a margin)
+/// of `area`, measured with the font itself.
+fn fit<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, text: &str, width: u32, max: f64) -> f64 {
+    let room = width.saturating_sub(40).max(100);
+    let mut size = max;
+    while size > 10.0 {
+        match area.estimate_text_size(text, &TextStyle::from((SANS, size).into_font())) {
+            Ok((w, _)) if w > room => size -= 1.0,
+            _ => break,
+        }
+    }
+    size
+}
+
+/// Draws a figure's title and subtitle (each shrunk to fit `width`) in a 78-pixel band at
+/// the top of `root` and returns the area below it.
+fn draw_header<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    subtitle: &str,
+    width: u32,
+) -> anyhow::Result<DrawingArea<DB, Shift>>
+where
+    DB::ErrorType: 'static,
+{
+    let (head, body) = root.split_vertically(78);
+    for (text, y, size, color) in [
+        (title, 12, 26.0, BLACK),
+        (subtitle, 46, 17.0, RGBColor(80, 80, 80)),
+    ] {
+        head.draw(&Text::new(
+            text.to_string(),
+            (20, y),
+            (SANS, fit(&head, text, width, size))
+                .into_font()
+                .color(&color),
+        ))?;
+    }
+    Ok(body)
+}
+
+fn luminance(c: RGBColor) -> f64 {
+    (0.299 * c.0 as f64 + 0.587 * c.1 as f64 + 0.114 * c.2 as f64) / 255.0
+}
+
+/// A picture that can be drawn on any backend.
+trait Figure {
+    fn size(&self) -> (u32, u32);
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    where
+        DB::ErrorType: 'static;
+}
+
+/// Writes `out/stem.png` and `out/stem.svg`.
+fn save<F: Figure>(fig: &F, out: &Path, stem: &str) -> anyhow::Result<Vec<PathBuf>> {
+    register_fonts();
+    let png = out.join(format!("{stem}.png"));
+    let svg = out.join(format!("{stem}.svg"));
+    {
+        let root = BitMapBackend::new(&png, fig.size()).into_drawing_area();
+        fig.draw(&root)
+            .with_context(|| format!("draw {}", png.display()))?;
+        root.present()
+            .with_context(|| format!("write {}", png.display()))?;
+    }
+    {
+        let root = SVGBackend::new(&svg, fig.size()).into_drawing_area();
+        fig.draw(&root)
+            .with_context(|| format!("draw {}", svg.display()))?;
+        root.present()
+            .with_context(|| format!("write {}", svg.display()))?;
+    }
+    Ok(vec![png, svg])
+}
+
+/// Formats a grid value for an axis (w1, w2).
+pub fn fmt_w(v: f64) -> String {
+    if (v - v.round()).abs() < 1e-9 {
+        format!("{}", v.round() as i64)
+    } else {
+        let s = format!("{v:.2}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    }
+}
+
+fn fmt_value(v: f64) -> String {
+    let a = v.abs();
+    if a != 0.0 && !(1e-3..1e4).contains(&a) {
+        format!("{v:.2e}")
+    } else if a >= 100.0 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.3}")
+    }
+}
+
+/// A tick label: values within a millionth of the axis span of zero are zero.
+fn fmt_tick(v: f64, span: f64) -> String {
+    let v = if v.abs() < span.abs() * 1e-6 { 0.0 } else { v };
+    if !(span.is_finite() && span > 0.0) || v.abs() >= 1e5 || (v != 0.0 && v.abs() < 1e-4) {
+        return fmt_value(v);
+    }
+    let decimals = (-(span / 10.0).log10()).ceil().clamp(0.0, 6.0) as usize;
+    format!("{v:.decimals$}")
+}
+
+fn value_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if !lo.is_finite() {
+        return None;
+    }
+    if hi - lo < 1e-12 {
+        let pad = (lo.abs() * 0.05).max(1e-3);
+        return Some((lo - pad, hi + pad));
+    }
+    Some((lo, hi))
+}
+
+mod curves;
+mod heatmap;
+mod surface;
+
+use curves::Curves;
+use heatmap::{Better, Heatmap};
+use surface::Surface;
+
+/// The component heatmaps: name, column label, which direction is better.
+pub const COMPONENTS: [(&str, &str, bool); 4] = [
+    ("track", "velocity tracking (higher is better)", true),
+    (
+        "effort",
+        "normalised torque effort (lower is better)",
+        false,
+    ),
+    ("tilt", "base tilt (lower is better)", false),
+    (
+        "progress",
+        "ground covered, m\u{b2} per step sum (higher is better)",
+        true,
+    ),
+];
+
+fn component(c: &ReportCell, name: &str) -> Option<f64> {
+    let s = c.score.as_ref()?;
+    Some(match name {
+        "track" => s.track,
+        "effort" => s.effort,
+        "tilt" => s.tilt,
+        "progress" => s.progress,
+        _ => s.score,
+    })
+}
+
+fn notes(d: &ReportData, t: usize) -> Vec<Vec<String>> {
+    d.grid(t, String::new(), |c| {
+        if c.score.is_some() {
+            "NaN".into()
+        } else {
+            c.state.clone()
+        }
+    })
+}
+
+/// Draws every picture; returns the files written.
+pub fn draw_all(d: &ReportData, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    let who = format!(
+        "sweep {} \u{201c}{}\u{201d}, robot {}",
+        d.sweep_id, d.name, d.robot
+    );
+    for (t, terrain) in d.terrains.iter().enumerate() {
+        let s = slug(terrain);
+        let scored = d.cells_of(t).filter(|c| c.value().is_some()).count();
+        let total = d.cells_of(t).count();
+        let heat = Heatmap {
+            title: format!("Gait score on {terrain}: {who}"),
+            subtitle: format!(
+                "{scored} of {total} cells scored; higher is better; \u{2605} marks the best cell{}",
+                if d.terrains.len() > 1 { " on this terrain" } else { "" }
+            ),
+            bar_label: "gait score".into(),
+            w1: &d.w1_values,
+            w2: &d.w2_values,
+            values: d.grid(t, None, |c| c.value()),
+            notes: notes(d, t),
+            better: Better::Higher,
+            marks: vec![],
+            integer: false,
+        };
+        files.extend(save(&heat, out, &format!("score_{s}"))?);
+        let falls = Heatmap {
+            title: format!("Fall rate on {terrain}: {who}"),
+            subtitle:
+                "fraction of the evaluation robots that fell; lower is better; a score is only \
+                       comparable between cells that walk"
+                    .into(),
+            bar_label: "fall rate".into(),
+            w1: &d.w1_values,
+            w2: &d.w2_values,
+            values: d.grid(t, None, |c| {
+                c.score
+                    .as_ref()
+                    .map(|s| s.fall_rate)
+                    .filter(|v| v.is_finite())
+            }),
+            notes: notes(d, t),
+            better: Better::Lower,
+            marks: vec![],
+            integer: false,
+        };
+        files.extend(save(&falls, out, &format!("fall_rate_{s}"))?);
+        let surf = Surface {
+            title: format!("Gait score surface on {terrain}: {who}"),
+            subtitle: "x: log10 torque weight w2, depth: w1 (tracking weight), height: gait score"
+                .into(),
+            w1: &d.w1_values,
+            w2: &d.w2_values,
+            values: d.grid(t, None, |c| c.value()),
+        };
+        files.extend(save(&surf, out, &format!("surface_{s}"))?);
+        for (name, label, higher) in COMPONENTS {
+            let heat = Heatmap {
+                title: format!("Score component \u{201c}{name}\u{201d} on {terrain}: {who}"),
+                subtitle: format!("{label}; \u{2605} marks the best cell by this component"),
+                bar_label: name.into(),
+                w1: &d.w1_values,
+                w2: &d.w2_values,
+                values: d.grid(t, None, |c| component(c, name).filter(|v| v.is_finite())),
+                notes: notes(d, t),
+                better: if higher {
+                    Better::Higher
+                } else {
+                    Better::Lower
+                },
+                marks: vec![],
+                integer: false,
+            };
+            files.extend(save(&heat, out, &format!("{name}_{s}"))?);
+        }
+        let curves = Curves {
+            title: format!("Learning curves on {terrain}: {who}"),
+            cells: d.cells_of(t).collect(),
+            promoted: d.promoted().map(|c| c.id),
+        };
+        files.extend(save(&curves, out, &format!("curves_{s}"))?);
+    }
+    if d.terrains.len() > 1 {
+        let (cells, count) = d.overlap();
+        let heat = Heatmap {
+            title: format!("Overlap across terrains: {who}"),
+            subtitle: format!(
+                "colour: on how many terrains ({}) a cell's score is in the top quartile; boxed: on all ({} cells)",
+                d.terrains.join(", "),
+                cells.len()
+            ),
+            bar_label: "terrains in the top quartile".into(),
+            w1: &d.w1_values,
+            w2: &d.w2_values,
+            values: count,
+            notes: vec![],
+            better: Better::None,
+            marks: cells,
+            integer: true,
+        };
+        files.extend(save(&heat, out, "overlap")?);
+    }
+    Ok(files)
+}
