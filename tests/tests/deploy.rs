@@ -17,6 +17,10 @@ use std::process::Command;
 
 use yaml_rust2::{Yaml, YamlLoader};
 
+#[path = "deploy_check/shell.rs"]
+mod shell;
+use shell::{shell_tokens, Tok};
+
 const BINARIES: [&str; 2] = ["coordinator", "worker"];
 
 fn repo_root() -> PathBuf {
@@ -95,92 +99,6 @@ struct Invocation {
     binary: String,
     /// The arguments after the binary.
     args: Vec<String>,
-}
-
-/// A shell word or a control operator (`;`, `&&`, `||`, `|`, `&`).
-#[derive(Debug, PartialEq)]
-enum Tok {
-    Word(String),
-    Op,
-}
-
-/// Splits shell text into words (quotes and backslashes removed, `$VAR` left as text) and
-/// control operators; a `#` at the start of a word starts a comment to the end of the line.
-fn shell_tokens(text: &str) -> Vec<Tok> {
-    let mut toks = Vec::new();
-    let mut cur = String::new();
-    let mut in_word = false;
-    let mut chars = text.chars().peekable();
-    while let Some(c) = chars.next() {
-        match c {
-            '\\' => match chars.next() {
-                Some('\n') => {}
-                Some(n) => {
-                    cur.push(n);
-                    in_word = true;
-                }
-                None => {}
-            },
-            '\'' => {
-                in_word = true;
-                for n in chars.by_ref() {
-                    if n == '\'' {
-                        break;
-                    }
-                    cur.push(n);
-                }
-            }
-            '"' => {
-                in_word = true;
-                while let Some(n) = chars.next() {
-                    match n {
-                        '"' => break,
-                        '\\' => {
-                            if let Some(m) = chars.next() {
-                                if !matches!(m, '"' | '\\' | '$' | '`') {
-                                    cur.push('\\');
-                                }
-                                cur.push(m);
-                            }
-                        }
-                        _ => cur.push(n),
-                    }
-                }
-            }
-            '#' if !in_word => {
-                for n in chars.by_ref() {
-                    if n == '\n' {
-                        toks.push(Tok::Op);
-                        break;
-                    }
-                }
-            }
-            ' ' | '\t' => {
-                if in_word {
-                    toks.push(Tok::Word(std::mem::take(&mut cur)));
-                    in_word = false;
-                }
-            }
-            '\n' | ';' | '&' | '|' | '(' | ')' => {
-                if in_word {
-                    toks.push(Tok::Word(std::mem::take(&mut cur)));
-                    in_word = false;
-                }
-                if matches!(c, '&' | '|') && chars.peek() == Some(&c) {
-                    chars.next();
-                }
-                toks.push(Tok::Op);
-            }
-            _ => {
-                cur.push(c);
-                in_word = true;
-            }
-        }
-    }
-    if in_word {
-        toks.push(Tok::Word(cur));
-    }
-    toks
 }
 
 /// `/opt/gaitsweep/bin/worker` -> `worker`; `$DIR/coordinator` -> `coordinator`.
