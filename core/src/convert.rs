@@ -183,6 +183,22 @@ impl From<&pb::CheckpointRef> for CheckpointRecord {
     }
 }
 
+/// What a worker needs to train `cell` of a sweep with `spec`: every value concrete (the
+/// spec's defaults were decided when the sweep was created).
+pub fn cell_task(cell: &CellRecord, spec: &ResolvedSpec) -> pb::CellTask {
+    pb::CellTask {
+        cell: Some(cell.into()),
+        robot: spec.robot.clone(),
+        difficulty: spec.difficulty.map(u32::from),
+        agents: spec.agents_per_cell as u32,
+        epochs: spec.epochs,
+        checkpoint_every: spec.checkpoint_every,
+        ppo_overrides: spec.ppo_overrides.clone(),
+        eval_robots: spec.eval_robots as u32,
+        eval_seconds: spec.eval_seconds,
+    }
+}
+
 impl From<&CellRecord> for pb::Cell {
     fn from(c: &CellRecord) -> Self {
         pb::Cell {

@@ -63,21 +63,10 @@ impl<S: Store> WorkerService for WorkerApi<S> {
         tracing::info!(lease = g.lease.0, cell = g.cell.id.0, worker = %worker, resume_epoch = g.resume.as_ref().map(|c| c.epoch), "cell leased");
         let cell: pb::Cell = (&g.cell).into();
         self.0.emit(g.cell.sweep_id.0, Kind::Cell(cell.clone()));
-        let s = &g.spec;
         Ok(Response::new(pb::LeaseResponse {
             lease: Some(pb::Lease {
                 lease_id: g.lease.0,
-                task: Some(pb::CellTask {
-                    cell: Some(cell),
-                    robot: s.robot.clone(),
-                    difficulty: s.difficulty.map(u32::from),
-                    agents: s.agents_per_cell as u32,
-                    epochs: s.epochs,
-                    checkpoint_every: s.checkpoint_every,
-                    ppo_overrides: s.ppo_overrides.clone(),
-                    eval_robots: s.eval_robots as u32,
-                    eval_seconds: s.eval_seconds,
-                }),
+                task: Some(gaitsweep_core::convert::cell_task(&g.cell, &g.spec)),
                 deadline_unix_ms: deadline,
                 resume_from: g.resume.as_ref().map(Into::into),
             }),
