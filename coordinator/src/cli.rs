@@ -1,13 +1,11 @@
 //! Client subcommands: create, list, show, watch, cancel, fetch-best.
 
 use anyhow::{bail, Context};
+use gaitsweep_core::client::{self, Auth};
 use gaitsweep_core::pb::{self, sweep_event::Kind, sweep_service_client::SweepServiceClient};
-use gaitsweep_core::{bearer, AUTH_HEADER};
-use sha2::{Digest, Sha256};
 use std::path::PathBuf;
-use tonic::metadata::MetadataValue;
 use tonic::service::interceptor::InterceptedService;
-use tonic::transport::{Certificate, Channel, ClientTlsConfig};
+use tonic::transport::Channel;
 
 /// How to reach the coordinator.
 #[derive(clap::Args, Clone)]
@@ -81,22 +79,11 @@ pub enum ClientCmd {
     },
 }
 
-type Auth =
-    Box<dyn FnMut(tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> + Send + Sync>;
 type Client = SweepServiceClient<InterceptedService<Channel, Auth>>;
 
 async fn connect(c: &Conn) -> anyhow::Result<Client> {
-    let mut ep = Channel::from_shared(c.connect.clone())
-        .with_context(|| format!("bad --connect url {:?}", c.connect))?;
-    if c.connect.starts_with("https://") {
-        let mut tls = ClientTlsConfig::new();
-        if let Some(ca) = &c.tls_ca {
-            let pem =
-                std::fs::read(ca).with_context(|| format!("read --tls-ca {}", ca.display()))?;
-            tls = tls.ca_certificate(Certificate::from_pem(pem));
-        }
-        ep = ep.tls_config(tls)?;
-    }
+    let ep = client::endpoint(&c.connect, c.tls_ca.as_deref()).map_err(anyhow::Error::msg)?;
+    let auth = Auth::new(c.token.as_deref()).map_err(anyhow::Error::msg)?;
     let channel = match ep.connect().await {
         Ok(ch) => ch,
         Err(e) => match gaitsweep_core::reason::tls_problem(&e) {
@@ -109,21 +96,8 @@ async fn connect(c: &Conn) -> anyhow::Result<Client> {
             }
         },
     };
-    let token: Option<MetadataValue<_>> = match &c.token {
-        Some(t) => Some(
-            bearer(t)
-                .parse()
-                .context("token has characters not allowed in metadata")?,
-        ),
-        None => None,
-    };
-    let auth: Auth = Box::new(move |mut req| {
-        if let Some(t) = &token {
-            req.metadata_mut().insert(AUTH_HEADER, t.clone());
-        }
-        Ok(req)
-    });
-    Ok(SweepServiceClient::with_interceptor(channel, auth).max_decoding_message_size(64 << 20))
+    Ok(SweepServiceClient::with_interceptor(channel, auth)
+        .max_decoding_message_size(client::MAX_MESSAGE))
 }
 
 /// Runs one client subcommand.
@@ -257,17 +231,14 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
                 })
                 .await?
                 .into_inner();
-            let mut bytes = Vec::with_capacity(ck.size as usize);
-            while let Some(chunk) = stream.message().await? {
-                bytes.extend_from_slice(&chunk.data);
-            }
-            let got = hex::encode(Sha256::digest(&bytes));
-            if got != ck.sha256 {
-                bail!(
+            let bytes = match client::collect_checkpoint(&mut stream, &ck.sha256, ck.size).await {
+                Ok(b) => b,
+                Err(client::DownloadError::Call(s)) => return Err(s.into()),
+                Err(client::DownloadError::Corrupt { got }) => bail!(
                     "downloaded checkpoint is corrupt (sha256 {got}, expected {}): try again",
                     ck.sha256
-                );
-            }
+                ),
+            };
             std::fs::write(&out, &bytes).with_context(|| format!("write {}", out.display()))?;
             let cell = p.cell.unwrap_or_default();
             println!(

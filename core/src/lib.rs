@@ -2,6 +2,7 @@
 //! (ids, cell and sweep states, the sweep spec with its validation and grid expansion), the
 //! generated gRPC code of `gaitsweep.v1`, and the one place that converts between them.
 
+pub mod client;
 pub mod convert;
 pub mod defaults;
 pub mod error;

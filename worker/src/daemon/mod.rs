@@ -8,7 +8,6 @@
 use crate::{Error, Result};
 use gaitsweep_core::pb::{self, worker_service_client::WorkerServiceClient};
 use gaitsweep_core::reason;
-use gaitsweep_core::{bearer, AUTH_HEADER};
 use gaitsweep_trainer::train::{
     train_cell, CellOutcome, CellRunConfig, EpochMetrics, TrainObserver,
 };
@@ -20,13 +19,16 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::mpsc;
-use tonic::metadata::{Ascii, MetadataValue};
 use tonic::service::interceptor::InterceptedService;
-use tonic::transport::{Certificate, Channel, ClientTlsConfig, Endpoint};
+use tonic::transport::Channel;
 use tonic::{Code, Status};
 
 /// Bytes per upload message.
-const CHUNK: usize = 256 * 1024;
+mod transfer;
+mod transport;
+
+use transfer::{download, upload, UploadError};
+use transport::{connect, is_unknown_worker, retry, tls_refused, transient, Backoff, Client};
 
 /// Command-line arguments of the worker daemon.
 #[derive(clap::Args, Debug, Clone)]
@@ -56,24 +58,6 @@ pub struct DaemonArgs {
     #[arg(long, default_value_t = 10.0)]
     pub max_backoff_seconds: f64,
 }
-
-/// Adds the access token to every call.
-#[derive(Clone)]
-pub struct Auth(Option<MetadataValue<Ascii>>);
-
-impl tonic::service::Interceptor for Auth {
-    fn call(
-        &mut self,
-        mut req: tonic::Request<()>,
-    ) -> std::result::Result<tonic::Request<()>, Status> {
-        if let Some(t) = &self.0 {
-            req.metadata_mut().insert(AUTH_HEADER, t.clone());
-        }
-        Ok(req)
-    }
-}
-
-type Client = WorkerServiceClient<InterceptedService<Channel, Auth>>;
 
 /// Runs the daemon on its own tokio runtime until Ctrl-C.
 pub fn run_blocking(args: DaemonArgs) -> Result<()> {
@@ -159,35 +143,6 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
     Ok(())
 }
 
-fn connect(args: &DaemonArgs) -> Result<Client> {
-    let bad =
-        |e: &dyn std::fmt::Display| Error::Config(format!("--connect {:?}: {e}", args.connect));
-    let mut ep = Endpoint::from_shared(args.connect.clone())
-        .map_err(|e| bad(&e))?
-        .connect_timeout(Duration::from_secs(5))
-        .tcp_nodelay(true);
-    if args.connect.starts_with("https://") {
-        let mut tls = ClientTlsConfig::new();
-        if let Some(ca) = &args.tls_ca {
-            let pem =
-                std::fs::read(ca).map_err(Error::io(format!("read --tls-ca {}", ca.display())))?;
-            tls = tls.ca_certificate(Certificate::from_pem(pem));
-        }
-        ep = ep.tls_config(tls).map_err(|e| bad(&e))?;
-    }
-    let token =
-        match &args.token {
-            Some(t) => Some(bearer(t).parse().map_err(|_| {
-                Error::Config("--token has characters not allowed in metadata".into())
-            })?),
-            None => None,
-        };
-    Ok(
-        WorkerServiceClient::with_interceptor(ep.connect_lazy(), Auth(token))
-            .max_decoding_message_size(64 << 20),
-    )
-}
-
 struct Ctx {
     client: Client,
     /// Replaced when the coordinator no longer knows this worker (e.g. its database was
@@ -198,96 +153,6 @@ struct Ctx {
     backoff: Backoff,
     device: tch::Device,
     work_dir: PathBuf,
-}
-
-/// Exponential backoff from 200 ms to a cap.
-#[derive(Clone, Copy)]
-struct Backoff {
-    max: Duration,
-}
-
-impl Backoff {
-    fn new(max: Duration) -> Self {
-        Self { max }
-    }
-
-    fn delay(&self, attempt: u32) -> Duration {
-        let base = Duration::from_millis(200).saturating_mul(1 << attempt.min(10));
-        let jitter = Duration::from_millis(rand::random::<u64>() % 100);
-        base.min(self.max) + jitter
-    }
-}
-
-/// Whether a failed call may succeed later (the coordinator is away, busy, or its disk
-/// is full). A refused TLS certificate is not: retrying cannot fix it.
-fn transient(s: &Status) -> bool {
-    if tls_refused(s).is_some() {
-        return false;
-    }
-    if reason::of(s) == Some(reason::DISK_FULL) {
-        return true;
-    }
-    matches!(
-        s.code(),
-        Code::Unavailable
-            | Code::DeadlineExceeded
-            | Code::Unknown
-            | Code::Aborted
-            | Code::Internal
-            | Code::Cancelled
-    )
-}
-
-/// Calls `f` until it succeeds, fails permanently, or `stop` is set (or, once the worker
-/// is stopping, after a few attempts).
-async fn retry<T, F, Fut>(
-    what: &str,
-    backoff: &Backoff,
-    stop: Option<&AtomicBool>,
-    mut f: F,
-) -> std::result::Result<T, Status>
-where
-    F: FnMut() -> Fut,
-    Fut: Future<Output = std::result::Result<tonic::Response<T>, Status>>,
-{
-    let mut attempt = 0;
-    loop {
-        match f().await {
-            Ok(r) => {
-                if attempt > 0 {
-                    tracing::info!(
-                        call = what,
-                        attempts = attempt + 1,
-                        "coordinator reachable again, delivered"
-                    );
-                }
-                return Ok(r.into_inner());
-            }
-            // A stopping worker tries a few times only: its coordinator may be stopping too.
-            Err(s)
-                if transient(&s)
-                    && !stop.is_some_and(|s| s.load(Ordering::Relaxed))
-                    && !(SHUTDOWN.load(Ordering::Relaxed) && attempt >= 3) =>
-            {
-                let d = backoff.delay(attempt);
-                if attempt == 0 || attempt % 10 == 0 {
-                    let why = match s.code() {
-                        Code::Unavailable | Code::DeadlineExceeded | Code::Cancelled => {
-                            "coordinator unreachable, retrying"
-                        }
-                        _ if reason::of(&s) == Some(reason::DISK_FULL) => {
-                            "the coordinator's disk is full, retrying"
-                        }
-                        _ => "the coordinator could not take the call, retrying",
-                    };
-                    tracing::warn!(call = what, code = ?s.code(), error = %s.message(), retry_in_ms = d.as_millis() as u64, "{why}");
-                }
-                attempt += 1;
-                tokio::time::sleep(d).await;
-            }
-            Err(s) => return Err(s),
-        }
-    }
 }
 
 /// Set when the process is asked to stop: training threads end their current epoch, write
@@ -330,16 +195,6 @@ impl Ctx {
             }
         }
     }
-}
-
-/// The coordinator's answer for a worker id it does not know (its database was replaced).
-fn is_unknown_worker(s: &tonic::Status) -> bool {
-    reason::of(s) == Some(reason::UNKNOWN_WORKER)
-}
-
-/// What is wrong if the call failed because the TLS handshake refused the certificate.
-fn tls_refused(s: &Status) -> Option<String> {
-    gaitsweep_core::reason::tls_problem(s)
 }
 
 async fn slot_loop(ctx: Arc<Ctx>, slot: u32) {
@@ -659,135 +514,4 @@ async fn deliver(
     Err(Error::Config(
         "the training thread ended without a result".into(),
     ))
-}
-
-enum UploadError {
-    /// The coordinator refused the upload for good.
-    Refused(Status),
-    /// The file could not be read.
-    Local(Error),
-}
-
-/// Uploads one checkpoint file (header, then chunks) with retries; returns its sha256 and size.
-async fn upload(
-    ctx: &Ctx,
-    lease: i64,
-    epoch: u32,
-    path: &Path,
-) -> std::result::Result<(String, u64), UploadError> {
-    let bytes = tokio::fs::read(path).await.map_err(|e| {
-        UploadError::Local(Error::io(format!("read checkpoint {}", path.display()))(e))
-    })?;
-    let sha = hex::encode(Sha256::digest(&bytes));
-    let bytes = Arc::new(bytes);
-    let header = pb::UploadHeader {
-        lease_id: lease,
-        epoch,
-        sha256: sha.clone(),
-        size: bytes.len() as u64,
-    };
-    retry("upload_checkpoint", &ctx.backoff, None, || {
-        let mut c = ctx.client.clone();
-        let msgs = upload_messages(header.clone(), bytes.clone());
-        async move { c.upload_checkpoint(tokio_stream::iter(msgs)).await }
-    })
-    .await
-    .map_err(UploadError::Refused)?;
-    tracing::info!(lease, epoch, sha256 = %sha, size = bytes.len(), "checkpoint uploaded");
-    Ok((sha, bytes.len() as u64))
-}
-
-/// The messages of one upload: the header, then the file in chunks.
-pub fn upload_messages(
-    header: pb::UploadHeader,
-    bytes: Arc<Vec<u8>>,
-) -> Vec<pb::UploadCheckpointRequest> {
-    use pb::upload_checkpoint_request::Part;
-    let mut msgs = vec![pb::UploadCheckpointRequest {
-        part: Some(Part::Header(header)),
-    }];
-    msgs.extend(bytes.chunks(CHUNK).map(|c| pb::UploadCheckpointRequest {
-        part: Some(Part::Chunk(pb::CheckpointChunk { data: c.to_vec() })),
-    }));
-    msgs
-}
-
-/// Downloads the checkpoint a lease resumes from into the cache (verifying its sha256).
-async fn download(ctx: &Ctx, ck: &pb::CheckpointRef, stop: &AtomicBool) -> Result<PathBuf> {
-    let path = ctx
-        .work_dir
-        .join("cache")
-        .join(format!("{}.safetensors", ck.sha256));
-    if path.is_file() {
-        return Ok(path);
-    }
-    let mut attempt = 0;
-    loop {
-        let mut c = ctx.client.clone();
-        let res: std::result::Result<Vec<u8>, Status> = async {
-            let mut s = c
-                .download_checkpoint(pb::DownloadCheckpointRequest {
-                    sha256: ck.sha256.clone(),
-                })
-                .await?
-                .into_inner();
-            let mut bytes = Vec::with_capacity(ck.size as usize);
-            while let Some(chunk) = s.message().await? {
-                bytes.extend_from_slice(&chunk.data);
-            }
-            Ok(bytes)
-        }
-        .await;
-        match res {
-            Ok(bytes) if hex::encode(Sha256::digest(&bytes)) == ck.sha256 => {
-                let tmp = path.with_extension("part");
-                std::fs::write(&tmp, &bytes)
-                    .map_err(Error::io(format!("write {}", tmp.display())))?;
-                std::fs::rename(&tmp, &path)
-                    .map_err(Error::io(format!("move {}", path.display())))?;
-                tracing::info!(sha256 = %ck.sha256, epoch = ck.epoch, "resume checkpoint downloaded");
-                return Ok(path);
-            }
-            Ok(_) => {
-                tracing::warn!(sha256 = %ck.sha256, "downloaded checkpoint does not match its sha256, retrying")
-            }
-            Err(s) if !transient(&s) || stop.load(Ordering::Relaxed) => {
-                return Err(Error::Config(format!(
-                    "cannot download checkpoint {}: {}",
-                    ck.sha256,
-                    s.message()
-                )))
-            }
-            Err(_) => {}
-        }
-        tokio::time::sleep(ctx.backoff.delay(attempt)).await;
-        attempt += 1;
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_full_coordinator_disk_is_retried_a_too_large_upload_is_not() {
-        let full = reason::with(Status::resource_exhausted("disk full"), reason::DISK_FULL);
-        assert!(transient(&full));
-        assert!(!transient(&Status::resource_exhausted(
-            "checkpoint too large"
-        )));
-        assert!(transient(&Status::unavailable("connection refused")));
-    }
-
-    #[test]
-    fn unknown_workers_are_recognised_by_reason_not_text() {
-        let s = reason::with(
-            Status::failed_precondition("anything at all"),
-            reason::UNKNOWN_WORKER,
-        );
-        assert!(is_unknown_worker(&s));
-        assert!(!is_unknown_worker(&Status::failed_precondition(
-            "worker \"w\" is not registered: call register first"
-        )));
-    }
 }
