@@ -19,7 +19,7 @@ if ! "$PY" -c "import mujoco, sys; sys.exit(0 if mujoco.__version__ == '$MUJOCO_
   echo "bench-sim: installing mujoco==$MUJOCO_VERSION into $VIRTUAL_ENV" >&2
   "$VIRTUAL_ENV/bin/pip" install --quiet "mujoco==$MUJOCO_VERSION"
 fi
-cargo build --release -p gaitsweep-sim --bin simbench >&2
+cargo build --release -p gaitsweep-sim --features bench --bin simbench >&2
 
 TMP="$(mktemp -d)"
 trap 'rm -rf "$TMP"' EXIT

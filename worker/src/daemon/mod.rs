@@ -23,12 +23,13 @@ use tonic::service::interceptor::InterceptedService;
 use tonic::transport::Channel;
 use tonic::{Code, Status};
 
-/// Bytes per upload message.
+#[cfg(test)]
+mod tests;
 mod transfer;
 mod transport;
 
 use transfer::{download, upload, UploadError};
-use transport::{connect, is_unknown_worker, retry, tls_refused, transient, Backoff, Client};
+use transport::{connect, is_unknown_worker, tls_refused, transient, Backoff, Coordinator, Retry};
 
 /// Command-line arguments of the worker daemon.
 #[derive(clap::Args, Debug, Clone)]
@@ -75,7 +76,10 @@ pub fn run_blocking(args: DaemonArgs) -> Result<()> {
 pub async fn run(args: DaemonArgs) -> Result<()> {
     let device = crate::cli::parse_device(&args.device)?;
     let client = connect(&args)?;
-    let backoff = Backoff::new(Duration::from_secs_f64(args.max_backoff_seconds.max(0.1)));
+    let retry = Retry {
+        backoff: Backoff::new(Duration::from_secs_f64(args.max_backoff_seconds.max(0.1))),
+        shutdown: Arc::new(AtomicBool::new(false)),
+    };
     let work_dir = args.work_dir.clone().unwrap_or_else(|| {
         std::env::temp_dir().join(format!("gaitsweep-worker-{}", std::process::id()))
     });
@@ -93,27 +97,26 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
         version: env!("CARGO_PKG_VERSION").to_string(),
     };
     let reg_req = reg.clone();
-    let reg = retry("register", &backoff, None, || {
-        let mut c = client.clone();
-        let r = reg.clone();
-        async move { c.register(r).await }
-    })
-    .await
-    .map_err(|s| match tls_refused(&s) {
-        Some(tls) => Error::Config(format!("cannot connect to {}: {tls}", args.connect)),
-        None => Error::Config(format!(
-            "the coordinator refused registration: {}",
-            s.message()
-        )),
-    })?;
+    let reg = retry
+        .call("register", None, || client.register(reg.clone()))
+        .await
+        .map_err(|s| match tls_refused(&s) {
+            Some(tls) => Error::Config(format!("cannot connect to {}: {tls}", args.connect)),
+            None => Error::Config(format!(
+                "the coordinator refused registration: {}",
+                s.message()
+            )),
+        })?;
+    let shutdown = retry.shutdown.clone();
     let ctx = Arc::new(Ctx {
         client,
         worker_id: std::sync::RwLock::new(reg.worker_id.clone()),
         registration: reg_req,
         heartbeat: Duration::from_millis(reg.heartbeat_interval_ms.max(100) as u64),
-        backoff,
+        retry,
         device,
         work_dir,
+        train: Arc::new(|cfg, observer| train_cell(cfg, observer)),
     });
     tracing::info!(worker = %reg.worker_id, slots = args.slots, device = %args.device, url = %args.connect, "worker registered");
     let mut slots = tokio::task::JoinSet::new();
@@ -123,7 +126,7 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
     tokio::select! {
         _ = gaitsweep_core::shutdown_signal() => {
             tracing::info!("stopping: each slot checkpoints its cell at the end of the epoch and uploads it");
-            SHUTDOWN.store(true, Ordering::Relaxed);
+            shutdown.store(true, Ordering::Relaxed);
             // Training threads use libtorch until they return; exiting before them would tear
             // libtorch down under their feet.
             let drained = tokio::time::timeout(SHUTDOWN_GRACE, async {
@@ -143,26 +146,30 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
     Ok(())
 }
 
-struct Ctx {
-    client: Client,
+/// Trains one cell, reporting to the observer: [`train_cell`] in production.
+type TrainFn =
+    Arc<dyn Fn(&CellRunConfig, &mut dyn TrainObserver) -> Result<CellOutcome> + Send + Sync>;
+
+/// What every slot of the daemon shares.
+struct Ctx<C> {
+    client: C,
     /// Replaced when the coordinator no longer knows this worker (e.g. its database was
     /// recreated) and the worker registers again.
     worker_id: std::sync::RwLock<String>,
     registration: pb::RegisterRequest,
     heartbeat: Duration,
-    backoff: Backoff,
+    /// Backoff, and the flag set when the process is asked to stop: training threads then
+    /// end their current epoch, write and upload a checkpoint, and no new cell is leased.
+    retry: Retry,
     device: tch::Device,
     work_dir: PathBuf,
+    train: TrainFn,
 }
-
-/// Set when the process is asked to stop: training threads end their current epoch, write
-/// and upload a checkpoint, and no new cell is leased.
-static SHUTDOWN: AtomicBool = AtomicBool::new(false);
 
 /// How long a stopping worker waits for its slots to checkpoint and upload.
 const SHUTDOWN_GRACE: Duration = Duration::from_secs(60);
 
-impl Ctx {
+impl<C: Coordinator> Ctx<C> {
     fn worker_id(&self) -> String {
         self.worker_id
             .read()
@@ -176,12 +183,12 @@ impl Ctx {
         if self.worker_id() != stale {
             return;
         }
-        let resp = retry("register", &self.backoff, None, || {
-            let mut c = self.client.clone();
-            let r = self.registration.clone();
-            async move { c.register(r).await }
-        })
-        .await;
+        let resp = self
+            .retry
+            .call("register", None, || {
+                self.client.register(self.registration.clone())
+            })
+            .await;
         match resp {
             Ok(reg) => {
                 let mut id = self.worker_id.write().unwrap_or_else(|e| e.into_inner());
@@ -197,19 +204,17 @@ impl Ctx {
     }
 }
 
-async fn slot_loop(ctx: Arc<Ctx>, slot: u32) {
-    while !SHUTDOWN.load(Ordering::Relaxed) {
+async fn slot_loop<C: Coordinator>(ctx: Arc<Ctx<C>>, slot: u32) {
+    while !ctx.retry.stopping() {
         let worker_id = ctx.worker_id();
         let req = pb::LeaseRequest {
             worker_id: worker_id.clone(),
             slot,
         };
-        let resp = retry("lease", &ctx.backoff, None, || {
-            let mut c = ctx.client.clone();
-            let r = req.clone();
-            async move { c.lease(r).await }
-        })
-        .await;
+        let resp = ctx
+            .retry
+            .call("lease", None, || ctx.client.lease(req.clone()))
+            .await;
         match resp {
             Ok(pb::LeaseResponse {
                 lease: Some(lease), ..
@@ -244,6 +249,7 @@ enum Event {
 struct Bridge {
     tx: mpsc::UnboundedSender<Event>,
     stop: Arc<AtomicBool>,
+    shutdown: Arc<AtomicBool>,
 }
 
 impl TrainObserver for Bridge {
@@ -254,11 +260,11 @@ impl TrainObserver for Bridge {
         let _ = self.tx.send(Event::Checkpoint(epoch, path.to_path_buf()));
     }
     fn should_stop(&self) -> bool {
-        self.stop.load(Ordering::Relaxed) || SHUTDOWN.load(Ordering::Relaxed)
+        self.stop.load(Ordering::Relaxed) || self.shutdown.load(Ordering::Relaxed)
     }
 }
 
-async fn run_lease(ctx: &Ctx, slot: u32, lease: pb::Lease) -> Result<()> {
+async fn run_lease<C: Coordinator>(ctx: &Ctx<C>, slot: u32, lease: pb::Lease) -> Result<()> {
     let id = lease.lease_id;
     let task = lease
         .task
@@ -297,14 +303,17 @@ async fn run_lease(ctx: &Ctx, slot: u32, lease: pb::Lease) -> Result<()> {
     let (tx, mut rx) = mpsc::unbounded_channel();
     let bridge_tx = tx.clone();
     let thread_stop = stop.clone();
+    let (train, shutdown) = (ctx.train.clone(), ctx.retry.shutdown.clone());
+    // Training never runs on the async runtime: heartbeats must not wait for an epoch.
     std::thread::Builder::new()
         .name(format!("train-slot-{slot}"))
         .spawn(move || {
             let mut bridge = Bridge {
                 tx: bridge_tx,
                 stop: thread_stop,
+                shutdown,
             };
-            let out = train_cell(&cfg, &mut bridge);
+            let out = train(&cfg, &mut bridge);
             let _ = bridge.tx.send(Event::Done(out));
         })
         .map_err(Error::io("spawn the training thread"))?;
@@ -326,8 +335,8 @@ async fn run_lease(ctx: &Ctx, slot: u32, lease: pb::Lease) -> Result<()> {
 }
 
 /// Renews the lease; sets `stop` when the coordinator says the lease is lost or cancelled.
-async fn heartbeat_loop(
-    mut client: Client,
+async fn heartbeat_loop<C: Coordinator>(
+    client: C,
     worker_id: String,
     lease: i64,
     every: Duration,
@@ -343,7 +352,6 @@ async fn heartbeat_loop(
         match client.heartbeat(req).await {
             Ok(r) => {
                 let status = r
-                    .into_inner()
                     .leases
                     .first()
                     .map(|l| l.status())
@@ -362,8 +370,8 @@ async fn heartbeat_loop(
 }
 
 /// Delivers the training thread's events in order until it is done.
-async fn deliver(
-    ctx: &Ctx,
+async fn deliver<C: Coordinator>(
+    ctx: &Ctx<C>,
     lease: i64,
     epochs: u32,
     rx: &mut mpsc::UnboundedReceiver<Event>,
@@ -395,12 +403,12 @@ async fn deliver(
                         values: m.values,
                     }],
                 };
-                if let Err(s) = retry("report_progress", &ctx.backoff, None, || {
-                    let mut c = ctx.client.clone();
-                    let r = req.clone();
-                    async move { c.report_progress(r).await }
-                })
-                .await
+                if let Err(s) = ctx
+                    .retry
+                    .call("report_progress", None, || {
+                        ctx.client.report_progress(req.clone())
+                    })
+                    .await
                 {
                     closed = true;
                     closed_by(&s);
@@ -447,12 +455,12 @@ async fn deliver(
                     epochs: out.epochs,
                     final_checkpoint_sha256: sha.unwrap_or_default(),
                 };
-                match retry("report_result", &ctx.backoff, None, || {
-                    let mut c = ctx.client.clone();
-                    let r = req.clone();
-                    async move { c.report_result(r).await }
-                })
-                .await
+                match ctx
+                    .retry
+                    .call("report_result", None, || {
+                        ctx.client.report_result(req.clone())
+                    })
+                    .await
                 {
                     Ok(r) => tracing::info!(
                         lease,
@@ -471,19 +479,19 @@ async fn deliver(
                     tracing::info!(lease, "cell stopped: the coordinator withdrew the lease");
                     return Ok(());
                 }
-                if SHUTDOWN.load(Ordering::Relaxed) {
+                if ctx.retry.stopping() {
                     // Give the cell back at once: it is queued again without waiting for the
                     // lease to expire, and a stop is not counted as a failed attempt.
                     let req = pb::ReleaseLeaseRequest {
                         lease_id: lease,
                         reason: "worker stopping".into(),
                     };
-                    match retry("release_lease", &ctx.backoff, None, || {
-                        let mut c = ctx.client.clone();
-                        let r = req.clone();
-                        async move { c.release_lease(r).await }
-                    })
-                    .await
+                    match ctx
+                        .retry
+                        .call("release_lease", None, || {
+                            ctx.client.release_lease(req.clone())
+                        })
+                        .await
                     {
                         Ok(r) => tracing::info!(
                             lease,
@@ -501,12 +509,10 @@ async fn deliver(
                     lease_id: lease,
                     error: e.to_string(),
                 };
-                let _ = retry("fail_cell", &ctx.backoff, None, || {
-                    let mut c = ctx.client.clone();
-                    let r = req.clone();
-                    async move { c.fail_cell(r).await }
-                })
-                .await;
+                let _ = ctx
+                    .retry
+                    .call("fail_cell", None, || ctx.client.fail_cell(req.clone()))
+                    .await;
                 return Err(e);
             }
         }

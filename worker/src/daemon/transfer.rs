@@ -1,7 +1,7 @@
 //! Checkpoint transfer: chunked uploads and sha256-checked downloads.
 
 use super::*;
-use gaitsweep_core::client::{collect_checkpoint, upload_messages, DownloadError};
+use gaitsweep_core::client::{upload_messages, DownloadError};
 
 pub(super) enum UploadError {
     /// The coordinator refused the upload for good.
@@ -11,8 +11,8 @@ pub(super) enum UploadError {
 }
 
 /// Uploads one checkpoint file (header, then chunks) with retries; returns its sha256 and size.
-pub(super) async fn upload(
-    ctx: &Ctx,
+pub(super) async fn upload<C: Coordinator>(
+    ctx: &Ctx<C>,
     lease: i64,
     epoch: u32,
     path: &Path,
@@ -21,27 +21,26 @@ pub(super) async fn upload(
         UploadError::Local(Error::io(format!("read checkpoint {}", path.display()))(e))
     })?;
     let sha = hex::encode(Sha256::digest(&bytes));
-    let bytes = Arc::new(bytes);
     let header = pb::UploadHeader {
         lease_id: lease,
         epoch,
         sha256: sha.clone(),
         size: bytes.len() as u64,
     };
-    retry("upload_checkpoint", &ctx.backoff, None, || {
-        let mut c = ctx.client.clone();
-        let msgs = upload_messages(header.clone(), &bytes);
-        async move { c.upload_checkpoint(tokio_stream::iter(msgs)).await }
-    })
-    .await
-    .map_err(UploadError::Refused)?;
+    ctx.retry
+        .call("upload_checkpoint", None, || {
+            ctx.client
+                .upload_checkpoint(upload_messages(header.clone(), &bytes))
+        })
+        .await
+        .map_err(UploadError::Refused)?;
     tracing::info!(lease, epoch, sha256 = %sha, size = bytes.len(), "checkpoint uploaded");
     Ok((sha, bytes.len() as u64))
 }
 
 /// Downloads the checkpoint a lease resumes from into the cache (verifying its sha256).
-pub(super) async fn download(
-    ctx: &Ctx,
+pub(super) async fn download<C: Coordinator>(
+    ctx: &Ctx<C>,
     ck: &pb::CheckpointRef,
     stop: &AtomicBool,
 ) -> Result<PathBuf> {
@@ -54,18 +53,10 @@ pub(super) async fn download(
     }
     let mut attempt = 0;
     loop {
-        let mut c = ctx.client.clone();
-        let res = async {
-            let mut s = c
-                .download_checkpoint(pb::DownloadCheckpointRequest {
-                    sha256: ck.sha256.clone(),
-                })
-                .await
-                .map_err(DownloadError::Call)?
-                .into_inner();
-            collect_checkpoint(&mut s, &ck.sha256, ck.size).await
-        }
-        .await;
+        let res = ctx
+            .client
+            .download_checkpoint(ck.sha256.clone(), ck.size)
+            .await;
         match res {
             Ok(bytes) => {
                 let tmp = path.with_extension("part");
@@ -88,7 +79,7 @@ pub(super) async fn download(
             }
             Err(DownloadError::Call(_)) => {}
         }
-        tokio::time::sleep(ctx.backoff.delay(attempt)).await;
+        tokio::time::sleep(ctx.retry.backoff.delay(attempt)).await;
         attempt += 1;
     }
 }
