@@ -148,6 +148,75 @@ fn one_f() -> f32 {
     1.0
 }
 
+/// legged_gym's domain randomization and observation noise, applied in training only (its
+/// `play.py` turns all of them off, and so does the evaluation). Defaults are legged_gym's
+/// `LeggedRobotCfg` (`noise`, `domain_rand`), so a preset without this table gets them.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct DomainRandConfig {
+    /// Uniform noise on the observations (`noise.add_noise`).
+    pub add_noise: bool,
+    /// Multiplies every noise scale (`noise.noise_level`).
+    pub noise_level: f32,
+    /// Noise half-widths in physical units, before the observation scales
+    /// (`noise.noise_scales`): base linear velocity (m/s).
+    pub noise_lin_vel: f32,
+    /// Base angular velocity (rad/s).
+    pub noise_ang_vel: f32,
+    /// Projected gravity (unit vector components).
+    pub noise_gravity: f32,
+    /// Joint positions (rad).
+    pub noise_dof_pos: f32,
+    /// Joint velocities (rad/s).
+    pub noise_dof_vel: f32,
+    /// Height scan (m).
+    pub noise_height: f32,
+    /// Robot shapes get a friction drawn per robot from `friction_range`
+    /// (`domain_rand.randomize_friction`); the terrain keeps `control.friction`.
+    pub randomize_friction: bool,
+    /// Friction range of the robot's shapes.
+    pub friction_range: [f32; 2],
+    /// Every `push_interval_s` the base's horizontal velocity is set to a random one of up
+    /// to `max_push_vel_xy` per axis (`domain_rand.push_robots`).
+    pub push_robots: bool,
+    /// Seconds between pushes.
+    pub push_interval_s: f32,
+    /// Largest pushed velocity per horizontal axis (m/s).
+    pub max_push_vel_xy: f32,
+}
+
+impl Default for DomainRandConfig {
+    fn default() -> Self {
+        DomainRandConfig {
+            add_noise: true,
+            noise_level: 1.0,
+            noise_lin_vel: 0.1,
+            noise_ang_vel: 0.2,
+            noise_gravity: 0.05,
+            noise_dof_pos: 0.01,
+            noise_dof_vel: 1.5,
+            noise_height: 0.1,
+            randomize_friction: true,
+            friction_range: [0.5, 1.25],
+            push_robots: true,
+            push_interval_s: 15.0,
+            max_push_vel_xy: 1.0,
+        }
+    }
+}
+
+impl DomainRandConfig {
+    /// Everything off (evaluation, and presets that opt out).
+    pub fn off() -> Self {
+        DomainRandConfig {
+            add_noise: false,
+            randomize_friction: false,
+            push_robots: false,
+            ..Self::default()
+        }
+    }
+}
+
 /// One axis of a grid: `count` values evenly spaced from `min` to `max`.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -339,6 +408,9 @@ pub struct PresetFile {
     pub grid: GridSpec,
     /// PPO hyperparameters.
     pub ppo: PpoConfig,
+    /// Domain randomization and observation noise in training (legged_gym's defaults).
+    #[serde(default)]
+    pub domain_rand: DomainRandConfig,
 }
 
 /// The directory of a robot's preset: `robot` itself when it is a path (contains `/`),

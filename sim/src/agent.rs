@@ -75,6 +75,8 @@ pub struct Agent {
     pub(crate) terms: RewardTerms,
     /// Frozen: done in an evaluation, no more stepping.
     pub(crate) frozen: bool,
+    /// Training robot: observation noise and pushes of the preset's `domain_rand` apply.
+    pub(crate) randomized: bool,
 }
 
 impl Agent {
@@ -100,6 +102,7 @@ impl Agent {
             score: ScoreAccumulator::default(),
             terms: RewardTerms::default(),
             frozen: false,
+            randomized: false,
         }
     }
 
@@ -150,6 +153,36 @@ impl Agent {
     pub(crate) fn walked(&self) -> f32 {
         let b = self.world.base().pos;
         (b.x - self.shifted[0] - self.origin[0]).hypot(b.y - self.shifted[1] - self.origin[1])
+    }
+
+    /// Makes this a training robot (`on`) or an evaluated one: a training robot's shapes
+    /// get a friction drawn from the preset's range, its observations are noisy and it is
+    /// pushed; an evaluated robot has the preset's friction and none of that.
+    pub(crate) fn set_randomized(&mut self, p: &Preset, on: bool) {
+        let d = &p.domain_rand;
+        self.randomized = on;
+        let friction = if on && d.randomize_friction {
+            self.rng
+                .random_range(d.friction_range[0]..=d.friction_range[1])
+        } else {
+            p.control.friction
+        };
+        self.world.set_robot_friction(friction);
+    }
+
+    /// legged_gym's `_push_robots`: the base's horizontal velocity set to a random one.
+    fn push(&mut self, p: &Preset) {
+        let d = &p.domain_rand;
+        if !(self.randomized && d.push_robots) {
+            return;
+        }
+        let every = (d.push_interval_s / p.policy_dt()).round().max(1.0) as u32;
+        if self.step_in_episode % every == 0 {
+            let m = d.max_push_vel_xy;
+            let vx = self.rng.random_range(-m..=m);
+            let vy = self.rng.random_range(-m..=m);
+            self.world.push_base(vx, vy);
+        }
     }
 
     /// Starts this episode as if `steps` of it had passed (legged_gym's
@@ -315,6 +348,7 @@ impl Agent {
             self.sample_command(p);
         }
         self.update_yaw_command(p);
+        self.push(p);
         StepReport {
             reward: self.terms.total(p.reward.only_positive_rewards),
             done: fell || timeout,
@@ -323,8 +357,22 @@ impl Agent {
     }
 
     /// Writes the observation (legged_gym's layout) into `out`.
-    pub(crate) fn observe(&self, p: &Preset, out: &mut [f32]) {
+    pub(crate) fn observe(&mut self, p: &Preset, out: &mut [f32]) {
         let o = &p.observation;
+        let d = &p.domain_rand;
+        let noisy = self.randomized && d.add_noise;
+        // legged_gym's noise_scale_vec: half-widths in observation units.
+        let level = if noisy { d.noise_level } else { 0.0 };
+        let scales = [
+            (3, d.noise_lin_vel * o.lin_vel_scale),
+            (3, d.noise_ang_vel * o.ang_vel_scale),
+            (3, d.noise_gravity),
+            (3, 0.0),
+            (NJ, d.noise_dof_pos * o.dof_pos_scale),
+            (NJ, d.noise_dof_vel * o.dof_vel_scale),
+            (NJ, 0.0),
+        ];
+        let rng = &mut self.rng;
         let base = self.world.base();
         let inv = base.rot.inverse();
         let lv = inv * base.linvel;
@@ -332,7 +380,7 @@ impl Agent {
         let g = inv * Vector::new(0.0, 0.0, -1.0);
         let mut i = 0;
         let mut put = |v: f32| {
-            out[i] = v.clamp(-o.clip, o.clip);
+            out[i] = v;
             i += 1;
         };
         for v in [lv.x, lv.y, lv.z] {
@@ -365,6 +413,21 @@ impl Agent {
             p,
             scan,
         );
+        if level > 0.0 {
+            let mut j = 0;
+            let height = (out.len() - i, d.noise_height * o.height_scale);
+            for (n, half) in scales.into_iter().chain(std::iter::once(height)) {
+                for v in &mut out[j..j + n] {
+                    if half > 0.0 {
+                        *v += rng.random_range(-1.0..=1.0f32) * half * level;
+                    }
+                }
+                j += n;
+            }
+        }
+        for v in out.iter_mut() {
+            *v = v.clamp(-o.clip, o.clip);
+        }
     }
 }
 

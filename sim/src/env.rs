@@ -208,6 +208,7 @@ impl VecEnv {
             .for_each(|(i, (a, o))| {
                 a.rng = rand_chacha::ChaCha8Rng::seed_from_u64(mix(seed, i as u64));
                 a.reset(p, terrain.tile(a.level, i).clone());
+                a.set_randomized(p, stagger);
                 if stagger {
                     let start = a.rng.random_range(0..max_steps);
                     a.skip_ahead(start);

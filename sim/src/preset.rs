@@ -7,8 +7,8 @@ use sha2::{Digest, Sha256};
 use crate::error::{Error, Result};
 
 pub use gaitsweep_model::preset::{
-    available, preset_dir, robots_dir, AxisSpec, CommandConfig, ControlConfig, GridSpec,
-    JointBackend, ObservationConfig, PpoConfig, PresetFile, RewardConfig,
+    available, preset_dir, robots_dir, AxisSpec, CommandConfig, ControlConfig, DomainRandConfig,
+    GridSpec, JointBackend, ObservationConfig, PpoConfig, PresetFile, RewardConfig,
 };
 
 /// A robot preset: its URDF, control, observation, reward and grid settings.
@@ -44,6 +44,8 @@ pub struct Preset {
     pub grid: GridSpec,
     /// PPO hyperparameters.
     pub ppo: PpoConfig,
+    /// Domain randomization and observation noise in training.
+    pub domain_rand: DomainRandConfig,
     /// sha256 of the preset file and the URDF: checkpoints record it.
     pub digest: String,
 }
@@ -113,6 +115,35 @@ impl Preset {
             problems
                 .push("observation.scan_x and scan_y must both be empty or both non-empty".into());
         }
+        let d = &file.domain_rand;
+        if !(d.friction_range[0] >= 0.0 && d.friction_range[0] <= d.friction_range[1]) {
+            problems.push(format!(
+                "domain_rand.friction_range: expected [lo, hi] with 0 <= lo <= hi, found {:?}",
+                d.friction_range
+            ));
+        }
+        if d.push_robots && !(d.push_interval_s > 0.0) {
+            problems.push(format!(
+                "domain_rand.push_interval_s: expected > 0 s, found {}",
+                d.push_interval_s
+            ));
+        }
+        let noise = [
+            d.noise_level,
+            d.noise_lin_vel,
+            d.noise_ang_vel,
+            d.noise_gravity,
+            d.noise_dof_pos,
+            d.noise_dof_vel,
+            d.noise_height,
+            d.max_push_vel_xy,
+        ];
+        if noise.iter().any(|v| !(*v >= 0.0 && v.is_finite())) {
+            problems.push(
+                "domain_rand: noise_level, the noise scales and max_push_vel_xy must be finite and >= 0"
+                    .into(),
+            );
+        }
         if !problems.is_empty() {
             return Err(err(problems.join("; ")));
         }
@@ -137,6 +168,7 @@ impl Preset {
             reward: file.reward,
             grid: file.grid,
             ppo: file.ppo,
+            domain_rand: file.domain_rand,
             digest,
         })
     }

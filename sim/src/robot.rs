@@ -561,6 +561,38 @@ impl RobotWorld {
         }
     }
 
+    /// Sets the friction coefficient of every robot shape (legged_gym's friction
+    /// randomization; rapier averages it with the terrain's, as PhysX does by default).
+    pub fn set_robot_friction(&mut self, friction: f32) {
+        let shapes = std::iter::once(self.base_collider)
+            .chain(self.legs.iter().copied())
+            .chain(self.feet.iter().copied());
+        for h in shapes {
+            self.world.colliders[h].set_friction(friction);
+        }
+    }
+
+    /// Sets the base's horizontal velocity to `(vx, vy)` (world), keeping the joint
+    /// velocities: every body gets the same change, as legged_gym's push sets the root
+    /// state of an articulation.
+    pub fn push_base(&mut self, vx: f32, vy: f32) {
+        let v0 = self.world.bodies[self.bodies[0]].linvel();
+        let dv = Vector::new(vx - v0.x, vy - v0.y, 0.0);
+        if self.backend == JointBackend::Multibody {
+            let (mb, bodies) = self.multibody_mut_with_bodies();
+            // A free root's first three generalized velocities are its linear velocity.
+            let mut v = mb.generalized_velocity_mut();
+            v[0] += dv.x;
+            v[1] += dv.y;
+            mb.update_rigid_bodies(bodies, true);
+            return;
+        }
+        for h in &self.bodies {
+            let rb = &mut self.world.bodies[*h];
+            rb.set_linvel(rb.linvel() + dv, false);
+        }
+    }
+
     /// Whether the base touches the terrain (a fall).
     pub fn base_contact(&self) -> bool {
         self.touching(self.base_collider)
