@@ -11,6 +11,11 @@ if ! "$VENV/bin/python" -c "import torch, sys; sys.exit(0 if torch.__version__.s
   python3 -m venv "$VENV"
   "$VENV/bin/pip" install --quiet "torch==$TORCH_VERSION"
 fi
+# TensorBoard reads the event files `worker train` writes (and the tests read them back).
+if ! "$VENV/bin/python" -c "import tensorboard" 2>/dev/null; then
+  echo "gaitsweep: installing tensorboard==2.20.0 into $VENV (once)" >&2
+  "$VENV/bin/pip" install --quiet "tensorboard==2.20.0"
+fi
 # tch's build script asks this python for libtorch's location and ABI.
 export VIRTUAL_ENV="$VENV"
 export PATH="$VENV/bin:$PATH"

@@ -24,6 +24,8 @@ enum Cmd {
     Serve(ServeArgs),
     /// Write a sweep's report (heatmaps, 3D surface, learning curves, gait GIF, index.html) from the data dir's database.
     Report(gaitsweep_coordinator::report::ReportArgs),
+    /// Write every metric of a sweep's cells as a TensorBoard log dir (one run per cell).
+    Tensorboard(gaitsweep_coordinator::report::tensorboard::TensorboardArgs),
     /// Client commands against a running coordinator.
     #[command(flatten)]
     Client(cli::ClientCmd),
@@ -87,6 +89,7 @@ fn main() -> anyhow::Result<()> {
                 Ok(())
             }
             Cmd::Report(a) => gaitsweep_coordinator::report::run(a).await,
+            Cmd::Tensorboard(a) => gaitsweep_coordinator::report::tensorboard::run(a).await,
             Cmd::Client(c) => cli::run(c).await,
         }
     })

@@ -139,6 +139,56 @@ async fn two_workers_finish_a_2x2_sweep() {
         .map(|d| d.count())
         .unwrap_or(0);
     assert!(exported > 0, "fetch-best --export wrote the exported actor");
+
+    // every metric of every cell as one TensorBoard log dir, read back by TensorBoard
+    let tb = tmp.path().join("tb");
+    let out = std::process::Command::new(bin("coordinator"))
+        .args(["tensorboard", &sweep.sweep_id.to_string(), "--data-dir"])
+        .arg(&coord.data)
+        .arg("--out")
+        .arg(&tb)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "coordinator tensorboard: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: i64 = sqlx::query_scalar(
+        "SELECT COUNT(*) FROM epoch_metrics m JOIN cells c ON c.id = m.cell_id WHERE c.sweep_id = ?",
+    )
+    .bind(sweep.sweep_id)
+    .fetch_one(&db)
+    .await
+    .unwrap();
+    let count = r#"
+import os, sys
+from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+runs = sorted(os.listdir(sys.argv[1])); n = 0
+for r in runs:
+    a = EventAccumulator(os.path.join(sys.argv[1], r), size_guidance={'scalars': 0}); a.Reload()
+    n += sum(len(a.Scalars(t)) for t in a.Tags()['scalars'])
+print(len(runs), n, runs[0])
+"#;
+    let read = std::process::Command::new(common::python())
+        .args(["-c", count])
+        .arg(&tb)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&read.stdout);
+    let f: Vec<&str> = text.split_whitespace().collect();
+    assert!(
+        read.status.success() && f.len() == 3,
+        "tensorboard read: {text} {}",
+        String::from_utf8_lossy(&read.stderr)
+    );
+    assert_eq!(f[0], "4", "one run per cell");
+    assert_eq!(f[1], rows.to_string(), "every stored metric is a scalar");
+    assert!(
+        f[2].starts_with("flat_w1=2.000_w2=-3.000_seed="),
+        "run name {}",
+        f[2]
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -67,7 +67,7 @@ pub struct TrainArgs {
     /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     pub device: String,
-    /// Output directory (checkpoints, metrics.jsonl, score.json).
+    /// Output directory (checkpoints, metrics.jsonl, TensorBoard events, score.json).
     #[arg(long)]
     pub out: PathBuf,
     /// A checkpoint every K epochs.
@@ -96,9 +96,10 @@ pub struct TrainArgs {
     pub quiet: bool,
 }
 
-/// Writes `metrics.jsonl` and drives the progress bar of `worker train`.
+/// Writes `metrics.jsonl`, TensorBoard scalars and the progress bar of `worker train`.
 pub struct LocalObserver {
     metrics: File,
+    events: gaitsweep_core::tensorboard::EventWriter,
     bar: ProgressBar,
 }
 
@@ -112,6 +113,9 @@ impl LocalObserver {
             .append(true)
             .open(&path)
             .map_err(Error::io(format!("open {}", path.display())))?;
+        let events = gaitsweep_core::tensorboard::EventWriter::create(dir).map_err(Error::io(
+            format!("start a tensorboard event file in {}", dir.display()),
+        ))?;
         let bar = if quiet {
             ProgressBar::hidden()
         } else {
@@ -124,7 +128,11 @@ impl LocalObserver {
             .expect("valid template"),
         );
         bar.set_position(start as u64);
-        Ok(Self { metrics, bar })
+        Ok(Self {
+            metrics,
+            events,
+            bar,
+        })
     }
 }
 
@@ -133,6 +141,14 @@ impl TrainObserver for LocalObserver {
         let line = serde_json::to_string(m).expect("metrics serialise");
         if let Err(e) = writeln!(self.metrics, "{line}") {
             tracing::warn!(error = %e, "cannot write metrics.jsonl");
+        }
+        let scalars = m.values.iter().map(|(k, v)| (k.as_str(), *v));
+        if let Err(e) = self
+            .events
+            .scalars(m.epoch, scalars)
+            .and_then(|()| self.events.flush())
+        {
+            tracing::warn!(error = %e, path = %self.events.path().display(), "cannot write tensorboard events");
         }
         let g = |k: &str| m.values.get(k).copied().unwrap_or(f64::NAN);
         self.bar.set_position(m.epoch as u64);

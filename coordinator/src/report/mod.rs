@@ -16,6 +16,7 @@
 
 mod html;
 mod plots;
+pub mod tensorboard;
 
 use crate::store::rows::{CellRow, CELL_COLUMNS};
 use anyhow::Context;

@@ -224,3 +224,18 @@ pub fn sha256_file(p: &Path) -> String {
     use sha2::Digest;
     hex::encode(sha2::Sha256::digest(std::fs::read(p).expect("read file")))
 }
+
+/// The python of the venv scripts/setup.sh installs (torch, tensorboard).
+pub fn python() -> PathBuf {
+    let cache = std::env::var_os("GAITSWEEP_CACHE")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/gaitsweep")))
+        .expect("HOME or GAITSWEEP_CACHE is set");
+    let py = cache.join("venv/bin/python");
+    assert!(
+        py.exists(),
+        "{} is missing: run the tests through scripts/test.sh, which installs it",
+        py.display()
+    );
+    py
+}
