@@ -12,6 +12,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .file_descriptor_set_path(out_dir.join("gaitsweep_v1_descriptor.bin"))
         .btree_map(".")
         .compile_protos(&files, &[root.clone()])?;
-    println!("cargo:rerun-if-changed={}", root.display());
+    // Each file, not the directory: cargo did not rerun this script when a .proto in
+    // `root` changed (a stale `pb` after a proto edit).
+    for f in &files {
+        println!("cargo:rerun-if-changed={}", f.display());
+    }
+    println!("cargo:rerun-if-changed=build.rs");
     Ok(())
 }

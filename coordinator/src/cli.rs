@@ -304,13 +304,26 @@ fn cell_state(s: i32) -> &'static str {
     }
 }
 
+/// The replicates of one grid point summarised: the scores' mean with its 95% confidence
+/// interval and the mean fall rate, over the replicates that have a score.
+fn point_summary(cells: &[&pb::Cell]) -> Option<(gaitsweep_core::stats::Summary, f64)> {
+    let scored: Vec<pb::GaitScore> = cells.iter().filter_map(|c| c.score).collect();
+    let scores: Vec<f64> = scored.iter().map(|x| x.score).collect();
+    let stats = gaitsweep_core::stats::Summary::of(&scores)?;
+    let fall = scored.iter().map(|x| x.fall_rate).sum::<f64>() / scored.len() as f64;
+    Some((stats, fall))
+}
+
 /// The sweep header and one score table per terrain: rows w1, columns w2 (log10 torque
 /// weight), each score with the fall rate of its evaluation beside it; `*` marks the best
-/// cell over all terrains, `+` the best on that terrain.
+/// point over all terrains, `+` the best on that terrain. With replicates (`seeds = k`) a
+/// point shows the mean of its replicates' scores ± the 95% confidence interval and the
+/// mean fall rate.
 fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
     use std::fmt::Write;
     let mut o = String::new();
     let spec = s.spec.clone().unwrap_or_default();
+    let replicates = spec.seeds.max(1);
     let _ = writeln!(
         o,
         "sweep {} {:?}: robot {}, {} | {} cells: {} done, {} running, {} queued, {} failed",
@@ -324,64 +337,91 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         s.cells_queued,
         s.cells_failed
     );
+    if replicates > 1 {
+        let _ = writeln!(
+            o,
+            "{replicates} replicates (seeds) per grid point: mean score ± 95% confidence interval / mean fall rate; points rank by the mean"
+        );
+    }
+    let width = if replicates > 1 { 22 } else { 16 };
+    let best_point = cells
+        .iter()
+        .find(|c| c.cell_id == s.best_cell_id)
+        .map(|b| (b.terrain_index, b.w1_index, b.w2_index));
     for (ti, terrain) in spec.terrains.iter().enumerate() {
-        let mine: Vec<&pb::Cell> = cells
-            .iter()
-            .filter(|c| c.terrain_index as usize == ti)
-            .collect();
-        let best_here = mine
-            .iter()
-            .filter_map(|c| c.score.map(|sc| (c.cell_id, sc.score)))
-            .filter(|x| !x.1.is_nan())
-            .fold(None::<(i64, f64)>, |b, x| {
-                if b.is_none_or(|b| x.1 > b.1) {
-                    Some(x)
-                } else {
-                    b
+        let point = |i: usize, j: usize| -> Vec<&pb::Cell> {
+            cells
+                .iter()
+                .filter(|c| {
+                    c.terrain_index as usize == ti
+                        && c.w1_index as usize == i
+                        && c.w2_index as usize == j
+                })
+                .collect()
+        };
+        let mut best_here: Option<((usize, usize), f64)> = None;
+        for i in 0..s.w1_values.len() {
+            for j in 0..s.w2_values.len() {
+                if let Some((st, _)) = point_summary(&point(i, j)) {
+                    if best_here.is_none_or(|b| st.mean > b.1) {
+                        best_here = Some(((i, j), st.mean));
+                    }
                 }
-            })
-            .map(|b| b.0);
+            }
+        }
         let _ = writeln!(
             o,
             "\nterrain {terrain}: gait score / fall rate of its evaluation (rows w1, columns w2 = log10 torque weight)"
         );
         let _ = write!(o, "{:>10}", "w1 \\ w2");
         for w2 in &s.w2_values {
-            let _ = write!(o, " {:>16.3}", w2);
+            let _ = write!(o, " {:>width$.3}", w2);
         }
         o.push('\n');
         for (i, w1) in s.w1_values.iter().enumerate() {
             let _ = write!(o, "{:>10.3}", w1);
             for j in 0..s.w2_values.len() {
-                let cell = mine
-                    .iter()
-                    .find(|c| c.w1_index as usize == i && c.w2_index as usize == j);
-                let text = match cell {
-                    Some(c) => match (
-                        c.score,
-                        pb::CellState::try_from(c.state).unwrap_or_default(),
-                    ) {
-                        (Some(sc), _) => {
-                            let mark = if c.cell_id == s.best_cell_id {
-                                "*"
-                            } else if Some(c.cell_id) == best_here {
-                                "+"
-                            } else {
-                                " "
-                            };
-                            format!("{:.4}/{:>3.0}%{mark}", sc.score, 100.0 * sc.fall_rate)
-                        }
-                        (None, st) => format!("{} ", cell_state(st as i32)),
-                    },
-                    None => "- ".into(),
+                let here = point(i, j);
+                let mark = if best_point == Some((ti as u32, i as u32, j as u32)) {
+                    "*"
+                } else if best_here.is_some_and(|b| b.0 == (i, j)) {
+                    "+"
+                } else {
+                    " "
                 };
-                let _ = write!(o, " {:>16}", text);
+                let text = match (point_summary(&here), here.first()) {
+                    (Some((st, fall)), _) if replicates > 1 => {
+                        format!("{:.3}±{:.3}/{:>3.0}%{mark}", st.mean, st.ci95, 100.0 * fall)
+                    }
+                    (Some((st, fall)), _) => {
+                        format!("{:.4}/{:>3.0}%{mark}", st.mean, 100.0 * fall)
+                    }
+                    (None, Some(c)) => format!("{} ", cell_state(c.state)),
+                    (None, None) => "- ".into(),
+                };
+                let _ = write!(o, " {:>width$}", text);
             }
             o.push('\n');
         }
     }
     if s.best_cell_id != 0 {
         if let Some(b) = cells.iter().find(|c| c.cell_id == s.best_cell_id) {
+            if replicates > 1 {
+                let here: Vec<&pb::Cell> = cells
+                    .iter()
+                    .filter(|c| {
+                        (c.terrain_index, c.w1_index, c.w2_index)
+                            == (b.terrain_index, b.w1_index, b.w2_index)
+                    })
+                    .collect();
+                if let Some((st, fall)) = point_summary(&here) {
+                    let _ = writeln!(
+                        o,
+                        "\nbest (*): w1 {:.3}, w2 {:.3} on {}: mean score {:.4} ± {:.4} (95% CI, sd {:.4}, {} replicates), mean fall rate {:.1}%; its model: replicate {} (cell {}, seed {})",
+                        b.w1, b.w2, b.terrain, st.mean, st.ci95, st.sd, st.n, 100.0 * fall, b.replicate, b.cell_id, b.seed
+                    );
+                }
+            }
             let _ = writeln!(
                 o,
                 "\nbest (*): cell {} on {}, w1 {:.3}, w2 {:.3}, score {:.4}, fall rate {:.1}%, |v_cmd - v| {:.3} m/s",
@@ -396,4 +436,58 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         }
     }
     o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cell(id: i64, w1_index: u32, replicate: u32, score: f64) -> pb::Cell {
+        pb::Cell {
+            cell_id: id,
+            terrain: "flat".into(),
+            w1_index,
+            w1: [2.0, 8.0][w1_index as usize],
+            w2: -6.0,
+            replicate,
+            seed: 100 + id as u64,
+            state: pb::CellState::Done as i32,
+            score: Some(pb::GaitScore {
+                score,
+                fall_rate: 0.25,
+                ..Default::default()
+            }),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn replicated_points_show_their_mean_and_interval() {
+        let sweep = pb::Sweep {
+            sweep_id: 1,
+            spec: Some(pb::SweepSpec {
+                terrains: vec!["flat".into()],
+                seeds: 2,
+                ..Default::default()
+            }),
+            w1_values: vec![2.0, 8.0],
+            w2_values: vec![-6.0],
+            best_cell_id: 3,
+            ..Default::default()
+        };
+        let cells = [
+            cell(1, 0, 0, 0.9),
+            cell(2, 0, 1, 0.1),
+            cell(3, 1, 0, 0.6),
+            cell(4, 1, 1, 0.6),
+        ];
+        let text = render_show(&sweep, &cells);
+        // Point w1 = 2: mean 0.5, sd 0.566, half-width 12.706 * 0.566 / sqrt(2) = 5.082.
+        assert!(text.contains("0.500±5.082/ 25% "), "{text}");
+        assert!(text.contains("0.600±0.000/ 25%*"), "{text}");
+        assert!(
+            text.contains("mean score 0.6000 ± 0.0000 (95% CI, sd 0.0000, 2 replicates)"),
+            "{text}"
+        );
+    }
 }

@@ -70,6 +70,34 @@ pub fn best_of(scores: impl IntoIterator<Item = (CellId, f64)>) -> Option<(CellI
         .fold(None, |best, s| if beats(s, best) { Some(s) } else { best })
 }
 
+/// The result of a grid point (terrain, w1, w2) over its replicates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointResult {
+    /// The replicate whose checkpoint stands for the point: the best-scoring one.
+    pub cell: CellId,
+    /// Summary of the replicates' scores; promotion ranks points by its mean.
+    pub stats: gaitsweep_core::stats::Summary,
+}
+
+/// A grid point's result once none of its replicates is still queued or running: the mean
+/// of the scores it has (failed replicates have none) and the best replicate. `None` while
+/// a replicate is open or when no replicate has a finite score.
+pub fn point_result(replicates: &[(CellId, Option<f64>)], open: usize) -> Option<PointResult> {
+    if open > 0 {
+        return None;
+    }
+    let scored: Vec<(CellId, f64)> = replicates
+        .iter()
+        .filter_map(|&(c, s)| s.filter(|v| v.is_finite()).map(|v| (c, v)))
+        .collect();
+    let (cell, _) = best_of(scored.iter().copied())?;
+    let values: Vec<f64> = scored.iter().map(|s| s.1).collect();
+    Some(PointResult {
+        cell,
+        stats: gaitsweep_core::stats::Summary::of(&values)?,
+    })
+}
+
 /// Whether a sweep is finished given how many of its cells are not terminal yet.
 pub fn sweep_finished(open_cells: u32) -> bool {
     open_cells == 0
@@ -104,6 +132,44 @@ mod tests {
     fn expiry_is_inclusive_of_the_deadline() {
         let l = [(LeaseId(1), 100), (LeaseId(2), 101), (LeaseId(3), 99)];
         assert_eq!(expired(l, 100), vec![LeaseId(1), LeaseId(3)]);
+    }
+
+    #[test]
+    fn a_point_waits_for_its_replicates_and_ranks_by_their_mean() {
+        let r = [
+            (CellId(1), Some(0.2)),
+            (CellId(2), Some(0.6)),
+            (CellId(3), None),
+        ];
+        assert_eq!(point_result(&r, 1), None, "a replicate is still open");
+        let p = point_result(&r, 0).unwrap();
+        assert_eq!(p.cell, CellId(2));
+        assert!((p.stats.mean - 0.4).abs() < 1e-12 && p.stats.n == 2);
+        assert_eq!(point_result(&[(CellId(4), None)], 0), None);
+    }
+
+    proptest! {
+        #[test]
+        fn one_replicate_is_its_own_point(id in 0i64..100, v in -10.0f64..10.0) {
+            let p = point_result(&[(CellId(id), Some(v))], 0).unwrap();
+            prop_assert_eq!(p.cell, CellId(id));
+            prop_assert_eq!(p.stats.mean, v);
+            prop_assert_eq!(p.stats.ci95, 0.0);
+        }
+
+        #[test]
+        fn the_mean_lies_within_its_interval_and_the_best_replicate_is_the_max(
+            v in proptest::collection::vec(-10.0f64..10.0, 1..8)
+        ) {
+            let r: Vec<(CellId, Option<f64>)> =
+                v.iter().enumerate().map(|(i, x)| (CellId(i as i64), Some(*x))).collect();
+            let p = point_result(&r, 0).unwrap();
+            let max = v.iter().cloned().fold(f64::MIN, f64::max);
+            prop_assert_eq!(v[p.cell.0 as usize], max);
+            let lo = v.iter().cloned().fold(f64::MAX, f64::min);
+            prop_assert!(p.stats.mean >= lo - 1e-9 && p.stats.mean <= max + 1e-9);
+            prop_assert!(p.stats.ci95 >= 0.0);
+        }
     }
 
     #[test]

@@ -48,6 +48,7 @@ impl From<pb::SweepSpec> for SweepSpec {
             epochs: nonzero(s.epochs),
             checkpoint_every: s.checkpoint_every,
             seed: s.seed,
+            seeds: nonzero(s.seeds),
             ppo: s.ppo_overrides,
             eval: EvalSpec {
                 robots: nonzero(s.eval_robots).map(|v| v as usize),
@@ -84,6 +85,7 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
             ppo_overrides: s.ppo_overrides.clone(),
             eval_robots: s.eval_robots as u32,
             eval_seconds: s.eval_seconds,
+            seeds: s.replicates,
         }
     }
 }
@@ -216,6 +218,7 @@ impl From<&CellRecord> for pb::Cell {
             score: c.score.as_ref().map(Into::into),
             last_error: c.last_error.clone().unwrap_or_default(),
             seed: c.seed,
+            replicate: c.replicate,
         }
     }
 }

@@ -11,6 +11,7 @@ pub mod reason;
 pub mod records;
 pub mod spec;
 pub mod state;
+pub mod stats;
 pub mod tensorboard;
 
 pub use error::{Error, Result};

@@ -36,6 +36,8 @@ pub struct CellRecord {
     pub w2: f64,
     /// The cell's seed.
     pub seed: u64,
+    /// Replicate number within its grid point, from 0.
+    pub replicate: u32,
     /// State.
     pub state: CellState,
     /// Attempts started.

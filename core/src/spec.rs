@@ -88,6 +88,10 @@ pub struct SweepSpec {
     /// Base seed.
     #[serde(default)]
     pub seed: u64,
+    /// Replicates: each grid point is trained this many times with different seeds, and
+    /// its result is their mean with a 95% confidence interval (default 1).
+    #[serde(default)]
+    pub seeds: Option<u32>,
     /// PPO hyper-parameter overrides.
     #[serde(default)]
     pub ppo: BTreeMap<String, f64>,
@@ -120,6 +124,9 @@ pub struct ResolvedSpec {
     pub checkpoint_every: u32,
     /// Base seed.
     pub seed: u64,
+    /// Replicates per grid point (specs stored before replicates existed read as 1).
+    #[serde(default = "one")]
+    pub replicates: u32,
     /// PPO overrides.
     pub ppo_overrides: BTreeMap<String, f64>,
     /// Robots in the evaluation rollout.
@@ -143,6 +150,8 @@ pub struct CellPlan {
     pub w1: f64,
     /// Torque penalty exponent.
     pub w2: f64,
+    /// Replicate number within its grid point, from 0.
+    pub replicate: u32,
     /// The cell's own seed.
     pub seed: u64,
 }
@@ -307,7 +316,16 @@ impl SweepSpec {
                 problems.push(format!("ppo.{k} is not a finite number"));
             }
         }
-        let cells = terrains.len().max(1) * w1_values.len() * w2_values.len();
+        let replicates = self.seeds.unwrap_or(1);
+        if replicates == 0 || replicates > MAX_REPLICATES {
+            problems.push(format!(
+                "seeds is {replicates}: use 1 to {MAX_REPLICATES} replicates per grid point"
+            ));
+        }
+        let cells = terrains.len().max(1)
+            * w1_values.len()
+            * w2_values.len()
+            * replicates.clamp(1, MAX_REPLICATES) as usize;
         if cells > MAX_CELLS {
             problems.push(format!(
                 "the grid has {cells} cells, more than the limit of {MAX_CELLS}"
@@ -333,6 +351,7 @@ impl SweepSpec {
             epochs,
             checkpoint_every: defaults::checkpoint_every(self.checkpoint_every, epochs),
             seed: self.seed,
+            replicates,
             ppo_overrides: self.ppo.clone(),
             eval_robots: self.eval.robots.unwrap_or(defaults::EVAL_ROBOTS),
             eval_seconds: self.eval.seconds.unwrap_or(defaults::EVAL_SECONDS),
@@ -356,31 +375,43 @@ impl ResolvedSpec {
         self
     }
 
-    /// Expands the grid: terrains x w1 x w2, in that order, each cell with its own seed.
+    /// Expands the grid: terrains x w1 x w2 x replicates, in that order, each cell with its
+    /// own seed. Replicate 0 of a point has the seed a grid without replicates gives it.
     pub fn cells(&self) -> Vec<CellPlan> {
+        let points = self.point_count() as u64;
         let mut out = Vec::with_capacity(self.cell_count());
+        let mut ordinal = 0u64;
         for (ti, terrain) in self.terrains.iter().enumerate() {
             for (i, &w1) in self.w1_values.iter().enumerate() {
                 for (j, &w2) in self.w2_values.iter().enumerate() {
-                    let ordinal = out.len() as u64;
-                    out.push(CellPlan {
-                        terrain_index: ti,
-                        terrain: *terrain,
-                        w1_index: i,
-                        w2_index: j,
-                        w1,
-                        w2,
-                        seed: splitmix64(self.seed.wrapping_add(ordinal)),
-                    });
+                    for r in 0..self.replicates.max(1) {
+                        let n = ordinal + u64::from(r) * points;
+                        out.push(CellPlan {
+                            terrain_index: ti,
+                            terrain: *terrain,
+                            w1_index: i,
+                            w2_index: j,
+                            w1,
+                            w2,
+                            replicate: r,
+                            seed: splitmix64(self.seed.wrapping_add(n)),
+                        });
+                    }
+                    ordinal += 1;
                 }
             }
         }
         out
     }
 
-    /// Number of cells of the grid.
-    pub fn cell_count(&self) -> usize {
+    /// Number of grid points (terrains x w1 x w2).
+    pub fn point_count(&self) -> usize {
         self.terrains.len() * self.w1_values.len() * self.w2_values.len()
+    }
+
+    /// Number of cells: grid points times replicates.
+    pub fn cell_count(&self) -> usize {
+        self.point_count() * self.replicates.max(1) as usize
     }
 }
 
@@ -403,6 +434,13 @@ mod terrain_names {
             .collect()
     }
 }
+
+fn one() -> u32 {
+    1
+}
+
+/// Most replicates a grid point may have.
+pub const MAX_REPLICATES: u32 = 32;
 
 /// A well-mixed 64-bit hash, so neighbouring cells get unrelated seeds.
 fn splitmix64(x: u64) -> u64 {
@@ -580,5 +618,49 @@ mod tests {
             proptest::prop_assert_eq!(cells[0].w1, 0.0);
             proptest::prop_assert_eq!(cells.last().unwrap().w2, if n2 == 1 { -3.0 } else { -1.0 });
         }
+    }
+
+    #[test]
+    fn replicates_multiply_the_cells_and_keep_replicate_zero_seeds() {
+        let text = "robot = \"anymal\"\nterrains = [\"flat\"]\nw1 = { values = [2.0, 8.0] }\nw2 = { values = [-6.0] }\nagents_per_cell = 2\nepochs = 3\nseed = 5\n";
+        let one = SweepSpec::from_toml(text)
+            .unwrap()
+            .resolve_with(|_| Ok((grid(), None)))
+            .unwrap();
+        let three = SweepSpec::from_toml(&format!("{text}seeds = 3\n"))
+            .unwrap()
+            .resolve_with(|_| Ok((grid(), None)))
+            .unwrap();
+        assert_eq!((one.replicates, three.replicates), (1, 3));
+        let (a, b) = (one.cells(), three.cells());
+        assert_eq!(
+            (a.len(), b.len(), three.cell_count(), three.point_count()),
+            (2, 6, 6, 2)
+        );
+        for p in &a {
+            let r0 = b
+                .iter()
+                .find(|c| c.w1_index == p.w1_index && c.replicate == 0)
+                .unwrap();
+            assert_eq!(
+                r0.seed, p.seed,
+                "replicate 0 trains as the cell did without replicates"
+            );
+        }
+        let seeds: std::collections::BTreeSet<u64> = b.iter().map(|c| c.seed).collect();
+        assert_eq!(seeds.len(), 6);
+        for bad in ["seeds = 0", "seeds = 33"] {
+            let e = SweepSpec::from_toml(&format!("{text}{bad}\n"))
+                .unwrap()
+                .resolve_with(|_| Ok((grid(), None)))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("replicates per grid point"), "{e}");
+        }
+        // A spec stored before replicates existed reads as one replicate.
+        let mut json = serde_json::to_value(&one).unwrap();
+        json.as_object_mut().unwrap().remove("replicates");
+        let old: ResolvedSpec = serde_json::from_value(json).unwrap();
+        assert_eq!(old.replicates, 1);
     }
 }

@@ -430,3 +430,85 @@ async fn worker_registers_again_with_a_coordinator_that_lost_its_database() {
     assert_eq!(done.cells_done, 1, "{}", tail(&w.log_text(), 20));
     assert!(w.log_text().contains("registered again"));
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn replicates_train_each_point_k_times_and_promote_the_best_mean() {
+    let _g = heavy();
+    let tmp = tempfile::tempdir().unwrap();
+    let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
+    let mut c = coord.sweeps().await;
+    let spec = format!("{}seeds = 2\n", tiny_spec(&[2.0, 8.0], &[-6.0], 2));
+    let sweep = create(&mut c, spec).await;
+    assert_eq!(sweep.cells_total, 4, "2 points x 2 replicates");
+    let w = start_worker(tmp.path(), &coord.url(), "a");
+    let done = wait_done(&coord, sweep.sweep_id, SWEEP_TIMEOUT, &[&coord.proc, &w]).await;
+    assert_eq!(
+        (done.state, done.cells_done),
+        (pb::SweepState::Done as i32, 4)
+    );
+
+    // SQL keeps every replicate's score; the promotion is the point with the best mean,
+    // stored with that mean and represented by its best replicate.
+    let db = coord.db().await;
+    let reps: Vec<(i64, i64, i64, f64)> = sqlx::query_as(
+        "SELECT c.w1_index, c.replicate, c.seed, s.score FROM cells c JOIN scores s ON s.cell_id = c.id \
+         WHERE c.sweep_id = ? ORDER BY c.w1_index, c.replicate",
+    )
+    .bind(sweep.sweep_id)
+    .fetch_all(&db)
+    .await
+    .unwrap();
+    assert_eq!(reps.len(), 4);
+    assert_eq!(
+        reps.iter().map(|r| (r.0, r.1)).collect::<Vec<_>>(),
+        [(0, 0), (0, 1), (1, 0), (1, 1)]
+    );
+    assert_ne!(
+        reps[0].2, reps[1].2,
+        "replicates train with different seeds"
+    );
+    let mean = |w1: i64| reps.iter().filter(|r| r.0 == w1).map(|r| r.3).sum::<f64>() / 2.0;
+    let best_w1 = if mean(0) >= mean(1) { 0 } else { 1 };
+    let (cell_id, promoted): (i64, f64) = sqlx::query_as(
+        "SELECT cell_id, score FROM promotions WHERE sweep_id = ? AND terrain = '' ORDER BY id DESC LIMIT 1",
+    )
+    .bind(sweep.sweep_id)
+    .fetch_one(&db)
+    .await
+    .unwrap();
+    assert!(
+        (promoted - mean(best_w1)).abs() < 1e-9,
+        "promoted {promoted}, means {} {}",
+        mean(0),
+        mean(1)
+    );
+    let (w1_index, score): (i64, f64) = sqlx::query_as(
+        "SELECT c.w1_index, s.score FROM cells c JOIN scores s ON s.cell_id = c.id WHERE c.id = ?",
+    )
+    .bind(cell_id)
+    .fetch_one(&db)
+    .await
+    .unwrap();
+    assert_eq!(w1_index, best_w1);
+    let best_rep = reps
+        .iter()
+        .filter(|r| r.0 == best_w1)
+        .map(|r| r.3)
+        .fold(f64::MIN, f64::max);
+    assert_eq!(score, best_rep, "the point's best replicate is its model");
+
+    let out = std::process::Command::new(bin("coordinator"))
+        .args([
+            "show",
+            "--connect",
+            &coord.url(),
+            &sweep.sweep_id.to_string(),
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains('±') && text.contains("2 replicates"),
+        "show output: {text}"
+    );
+}

@@ -206,7 +206,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         );
     }
 
-    o.push_str("<h2>Cells</h2>\n<table>\n<tr><th>cell</th><th>terrain</th><th>w1</th><th>w2</th><th>state</th><th>epochs</th><th>attempts</th>\
+    o.push_str("<h2>Cells</h2>\n<table>\n<tr><th>cell</th><th>terrain</th><th>w1</th><th>w2</th><th>replicate</th><th>state</th><th>epochs</th><th>attempts</th>\
                 <th>score</th><th>track</th><th>effort</th><th>tilt</th><th>progress</th><th>fall rate</th><th>|v_cmd \u{2212} v|</th>\
                 <th>mean |\u{3c4}|</th><th>cost of transport</th><th>error</th></tr>\n");
     let best_id = promoted.map(|c| c.id);
@@ -218,12 +218,13 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         };
         let _ = write!(
             o,
-            "<tr{class}><td>{}{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",
+            "<tr{class}><td>{}{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",
             c.id,
             if Some(c.id) == best_id { " \u{2605}" } else { "" },
             esc(&c.terrain),
             fmt_w(c.w1),
             fmt_w(c.w2),
+            c.replicate,
             esc(&c.state),
             c.epochs_done,
             c.attempts

@@ -47,6 +47,8 @@ pub struct ReportCell {
     pub terrain: String,
     /// Row (index into [`ReportData::w1_values`]).
     pub w1_index: usize,
+    /// Replicate number within its grid point (`seeds = k` in the spec).
+    pub replicate: u32,
     /// Column (index into [`ReportData::w2_values`]).
     pub w2_index: usize,
     /// Velocity-tracking weight.
@@ -160,6 +162,32 @@ impl ReportData {
         g
     }
 
+    /// Grid `[w1_index][w2_index]` of terrain `t`: per grid point the mean of `f` over its
+    /// replicates that have a value (`seeds = k` trains each point k times).
+    pub fn grid_mean(
+        &self,
+        t: usize,
+        f: impl Fn(&ReportCell) -> Option<f64>,
+    ) -> Vec<Vec<Option<f64>>> {
+        let mut sum = vec![vec![(0.0, 0usize); self.w2_values.len()]; self.w1_values.len()];
+        for c in self.cells_of(t) {
+            if let (Some(v), Some(slot)) = (
+                f(c),
+                sum.get_mut(c.w1_index).and_then(|r| r.get_mut(c.w2_index)),
+            ) {
+                slot.0 += v;
+                slot.1 += 1;
+            }
+        }
+        sum.into_iter()
+            .map(|r| {
+                r.into_iter()
+                    .map(|(s, n)| (n > 0).then(|| s / n as f64))
+                    .collect()
+            })
+            .collect()
+    }
+
     /// Cells `(w1_index, w2_index)` whose score is in the top quartile of their terrain's
     /// scored cells on every terrain, and per grid position the number of terrains where
     /// it is in the top quartile.
@@ -252,6 +280,7 @@ pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportDat
             terrain_index: c.terrain_index as usize,
             terrain: c.terrain,
             w1_index: c.w1_index as usize,
+            replicate: c.replicate,
             w2_index: c.w2_index as usize,
             w1: c.w1,
             w2: c.w2,

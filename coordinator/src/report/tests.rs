@@ -55,6 +55,7 @@ fn synthetic() -> ReportData {
                     terrain_index: t,
                     terrain: terrain.clone(),
                     w1_index: i,
+                    replicate: 0,
                     w2_index: j,
                     w1: *a,
                     w2: *b,
@@ -280,6 +281,7 @@ fn spec() -> ResolvedSpec {
         epochs: 3,
         checkpoint_every: 1,
         seed: 1,
+        replicates: 1,
         ppo_overrides: Default::default(),
         eval_robots: 0,
         eval_seconds: 0.0,
@@ -407,4 +409,35 @@ fn a_one_cell_grid_is_drawn() {
         !dir.path().join("overlap.png").exists(),
         "no overlap with one terrain"
     );
+}
+
+#[test]
+fn replicated_points_are_drawn_as_their_mean() {
+    let mut d = synthetic();
+    // A second replicate of every cell, scoring 0.2 less.
+    let extra: Vec<ReportCell> = d
+        .cells
+        .iter()
+        .map(|c| {
+            let mut r = c.clone();
+            r.id += 1000;
+            r.replicate = 1;
+            if let Some(s) = r.score.as_mut() {
+                s.score -= 0.2;
+            }
+            r
+        })
+        .collect();
+    let single = d.grid_mean(0, |c| c.value());
+    d.cells.extend(extra);
+    let mean = d.grid_mean(0, |c| c.value());
+    for (r1, r2) in single.iter().zip(&mean) {
+        for (a, b) in r1.iter().zip(r2) {
+            match (a, b) {
+                (Some(a), Some(b)) => assert!((a - 0.1 - b).abs() < 1e-12, "{a} {b}"),
+                (None, None) => {}
+                _ => panic!("a point gained or lost its value: {a:?} {b:?}"),
+            }
+        }
+    }
 }

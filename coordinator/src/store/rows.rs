@@ -73,6 +73,8 @@ pub struct CellRow {
     pub w2: f64,
     /// The cell's seed (stored as a signed 64-bit integer).
     pub seed: i64,
+    /// Replicate number within its grid point.
+    pub replicate: i64,
     /// queued, running, done, failed, cancelled.
     pub state: String,
     /// Leases so far.
@@ -89,7 +91,7 @@ pub struct CellRow {
 /// The columns [`CellRow`] reads: `cells c LEFT JOIN scores s`.
 pub const CELL_COLUMNS: &str =
     "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, \
-     c.seed, c.state, c.attempts, c.epochs_done, c.last_error, s.score, s.track, s.effort, s.tilt, \
+     c.seed, c.replicate, c.state, c.attempts, c.epochs_done, c.last_error, s.score, s.track, s.effort, s.tilt, \
      s.progress, s.fall_rate, s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots";
 
 impl TryFrom<CellRow> for CellRecord {
@@ -105,6 +107,7 @@ impl TryFrom<CellRow> for CellRecord {
             w1: r.w1,
             w2: r.w2,
             seed: r.seed as u64,
+            replicate: r.replicate as u32,
             state: CellState::from_str(&r.state)?,
             attempts: r.attempts as u32,
             epochs_done: r.epochs_done as u32,

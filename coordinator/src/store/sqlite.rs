@@ -211,6 +211,42 @@ async fn checkpoint_of(
     }))
 }
 
+/// Promotes the grid point of `cell` once all its replicates are closed: ranked by the mean
+/// of their scores, represented by its best replicate (whose checkpoint is the model). With
+/// one replicate this is the cell and its score.
+async fn promote_point(
+    tx: &mut Tx,
+    cell: &CellRecord,
+    now_ms: i64,
+) -> Result<Vec<PromotionRecord>> {
+    let rows: Vec<(i64, String, Option<f64>)> = sqlx::query_as(
+        "SELECT c.id, c.state, s.score FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
+         WHERE c.sweep_id = ? AND c.terrain_index = ? AND c.w1_index = ? AND c.w2_index = ? ORDER BY c.id",
+    )
+    .bind(cell.sweep_id.0)
+    .bind(i64::from(cell.terrain_index))
+    .bind(i64::from(cell.w1_index))
+    .bind(i64::from(cell.w2_index))
+    .fetch_all(&mut **tx)
+    .await?;
+    let open = rows
+        .iter()
+        .filter(|r| r.1 == CellState::Queued.as_str() || r.1 == CellState::Running.as_str())
+        .count();
+    let replicates: Vec<(CellId, Option<f64>)> = rows.iter().map(|r| (CellId(r.0), r.2)).collect();
+    let Some(point) = sched::point_result(&replicates, open) else {
+        return Ok(vec![]);
+    };
+    let best = cell_tx(tx, point.cell).await?;
+    let (sha, epochs): (Option<String>, i64) =
+        sqlx::query_as("SELECT final_checkpoint_sha256, epochs FROM scores WHERE cell_id = ?")
+            .bind(point.cell.0)
+            .fetch_one(&mut **tx)
+            .await?;
+    let ckpt = checkpoint_of(tx, sha, Some(epochs)).await?;
+    promote(tx, &best, point.stats.mean, ckpt, now_ms).await
+}
+
 /// Promotes `cell` over all terrains and on its terrain if it beats the current best.
 async fn promote(
     tx: &mut Tx,
@@ -263,8 +299,8 @@ impl Store for SqliteStore {
         .await?;
         for c in spec.cells() {
             sqlx::query(
-                "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, seed, state) \
-                 VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'queued')",
+                "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, replicate, seed, state) \
+                 VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued')",
             )
             .bind(id)
             .bind(c.terrain_index as i64)
@@ -273,6 +309,7 @@ impl Store for SqliteStore {
             .bind(c.w2_index as i64)
             .bind(c.w1)
             .bind(c.w2)
+            .bind(i64::from(c.replicate))
             .bind(c.seed as i64)
             .execute(&mut *tx)
             .await?;
@@ -615,18 +652,14 @@ impl Store for SqliteStore {
         }
         refuse_closed(cell_id, state)?;
         validate::result_epochs(total, epochs)?;
-        let final_ckpt = match final_sha256 {
-            Some(sha) => {
-                let ck = checkpoint_of(&mut tx, Some(sha.to_string()), Some(epochs as i64)).await?;
-                if ck.is_none() {
-                    return Err(Error::BadRequest(format!(
-                        "final checkpoint {sha} was not uploaded: upload it before reporting the result"
-                    )));
-                }
-                ck
+        if let Some(sha) = final_sha256 {
+            let ck = checkpoint_of(&mut tx, Some(sha.to_string()), Some(epochs as i64)).await?;
+            if ck.is_none() {
+                return Err(Error::BadRequest(format!(
+                    "final checkpoint {sha} was not uploaded: upload it before reporting the result"
+                )));
             }
-            None => None,
-        };
+        }
         sqlx::query(
             "INSERT INTO scores (cell_id, attempt_id, score, track, effort, tilt, progress, fall_rate, mean_vel_error, \
              mean_abs_torque, cost_of_transport, robots, epochs, final_checkpoint_sha256, reported_unix_ms) \
@@ -670,7 +703,7 @@ impl Store for SqliteStore {
         .execute(&mut *tx)
         .await?;
         let cell = cell_tx(&mut tx, cell_id).await?;
-        let promotions = promote(&mut tx, &cell, score.score, final_ckpt, now_ms).await?;
+        let promotions = promote_point(&mut tx, &cell, now_ms).await?;
         let finished = finish_if_done(&mut tx, sweep, now_ms).await?;
         tx.commit().await?;
         Ok(ResultOutcome {

@@ -18,6 +18,7 @@ fn spec(w1: usize, w2: usize, terrains: Vec<TerrainKind>) -> ResolvedSpec {
         epochs: 3,
         checkpoint_every: 1,
         seed: 1,
+        replicates: 1,
         ppo_overrides: Default::default(),
         eval_robots: 0,
         eval_seconds: 0.0,
@@ -387,4 +388,54 @@ async fn reports_outside_the_cell_are_refused_and_change_nothing() {
         Err(Error::BadRequest(m)) if m.contains("its terrains are flat")
     ));
     assert!(store.promoted(sweep.id, Some("flat")).await.is_ok());
+}
+
+#[tokio::test]
+async fn replicates_promote_a_point_by_their_mean_once_all_are_done() {
+    let (_d, store, w) = setup().await;
+    let mut s = spec(2, 1, vec![TerrainKind::Flat]);
+    s.replicates = 2;
+    let sweep = store.create_sweep(&s, 0).await.unwrap();
+    assert_eq!(sweep.cells_total, 4);
+    let cells = store.cells(sweep.id).await.unwrap();
+    let seeds: std::collections::BTreeSet<u64> = cells.iter().map(|c| c.seed).collect();
+    assert_eq!(seeds.len(), 4, "every replicate has its own seed");
+    // Point w1 = 0: 0.9 and 0.1 (mean 0.5); point w1 = 1: 0.6 and 0.6 (mean 0.6).
+    let value = |w1: u32, r: u32| [[0.9, 0.1], [0.6, 0.6]][w1 as usize][r as usize];
+    let mut reported = [0; 2];
+    while let Some(g) = store.lease_next(&w, 0, 1).await.unwrap() {
+        let c = g.cell.clone();
+        let out = store
+            .report_result(g.lease, &score(value(c.w1_index, c.replicate)), 3, None, 3)
+            .await
+            .unwrap();
+        reported[c.w1_index as usize] += 1;
+        if reported[c.w1_index as usize] < 2 {
+            assert!(
+                out.promotions.is_empty(),
+                "promoted before its other replicate reported"
+            );
+        } else if reported.iter().sum::<i32>() == 2 {
+            assert!(
+                !out.promotions.is_empty(),
+                "the first complete point is promoted"
+            );
+        }
+        for p in &out.promotions {
+            assert_eq!(p.cell.w1_index, c.w1_index);
+            // Point 0's best is its 0.9; point 1's replicates tie and the lower id wins.
+            assert_eq!(
+                p.cell.replicate, 0,
+                "the point's best replicate stands for it"
+            );
+        }
+    }
+    let best = store.promoted(sweep.id, None).await.unwrap();
+    assert_eq!(
+        best.cell.w1_index, 1,
+        "mean 0.6 beats mean 0.5 despite the single 0.9"
+    );
+    assert_eq!(best.cell.replicate, 0, "ties go to the lower id");
+    let rec = store.sweep(sweep.id).await.unwrap();
+    assert_eq!(rec.best_cell, Some(best.cell.id));
 }

@@ -245,7 +245,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
             bar_label: "gait score".into(),
             w1: &d.w1_values,
             w2: &d.w2_values,
-            values: d.grid(t, None, |c| c.value()),
+            values: d.grid_mean(t, |c| c.value()),
             notes: notes(d, t),
             better: Better::Higher,
             marks: vec![],
@@ -261,7 +261,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
             bar_label: "fall rate".into(),
             w1: &d.w1_values,
             w2: &d.w2_values,
-            values: d.grid(t, None, |c| {
+            values: d.grid_mean(t, |c| {
                 c.score
                     .as_ref()
                     .map(|s| s.fall_rate)
@@ -279,7 +279,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
                 .into(),
             w1: &d.w1_values,
             w2: &d.w2_values,
-            values: d.grid(t, None, |c| c.value()),
+            values: d.grid_mean(t, |c| c.value()),
         };
         files.extend(save(&surf, out, &format!("surface_{s}"))?);
         for (name, label, higher) in COMPONENTS {
@@ -289,7 +289,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
                 bar_label: name.into(),
                 w1: &d.w1_values,
                 w2: &d.w2_values,
-                values: d.grid(t, None, |c| component(c, name).filter(|v| v.is_finite())),
+                values: d.grid_mean(t, |c| component(c, name).filter(|v| v.is_finite())),
                 notes: notes(d, t),
                 better: if higher {
                     Better::Higher
