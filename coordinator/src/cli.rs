@@ -150,11 +150,30 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
             print!("{}", render_show(&s, &cells));
         }
         ClientCmd::Watch { conn, sweep, every } => {
+            use std::io::IsTerminal;
             let mut c = connect(&conn).await?;
             let mut stream = c
                 .watch_sweep(pb::WatchSweepRequest { sweep_id: sweep })
                 .await?
                 .into_inner();
+            if std::io::stdout().is_terminal() && std::io::stderr().is_terminal() {
+                let s = c
+                    .get_sweep(pb::GetSweepRequest { sweep_id: sweep })
+                    .await?
+                    .into_inner();
+                let cells = c
+                    .list_cells(pb::ListCellsRequest { sweep_id: sweep })
+                    .await?
+                    .into_inner()
+                    .cells;
+                let mut bars = gaitsweep_coordinator::watch::WatchBars::new(&s, &cells, false);
+                while let Some(ev) = stream.message().await? {
+                    if bars.event(&ev) {
+                        break;
+                    }
+                }
+                return Ok(());
+            }
             while let Some(ev) = stream.message().await? {
                 match ev.kind {
                     Some(Kind::Cell(cell)) => println!(
@@ -421,6 +440,9 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                         b.w1, b.w2, b.terrain, st.mean, st.ci95, st.sd, st.n, 100.0 * fall, b.replicate, b.cell_id, b.seed
                     );
                 }
+            }
+            if replicates > 1 {
+                return o;
             }
             let _ = writeln!(
                 o,

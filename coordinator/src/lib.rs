@@ -13,5 +13,6 @@ pub mod serve;
 pub mod service;
 pub mod store;
 pub mod validate;
+pub mod watch;
 
 pub use error::{Error, Result};
