@@ -81,6 +81,20 @@ pub enum ClientCmd {
 
 type Client = SweepServiceClient<InterceptedService<Channel, Auth>>;
 
+/// A sweep and its cells as they are now.
+async fn sweep_and_cells(c: &mut Client, sweep: i64) -> anyhow::Result<(pb::Sweep, Vec<pb::Cell>)> {
+    let s = c
+        .get_sweep(pb::GetSweepRequest { sweep_id: sweep })
+        .await?
+        .into_inner();
+    let cells = c
+        .list_cells(pb::ListCellsRequest { sweep_id: sweep })
+        .await?
+        .into_inner()
+        .cells;
+    Ok((s, cells))
+}
+
 async fn connect(c: &Conn) -> anyhow::Result<Client> {
     let ep = client::endpoint(&c.connect, c.tls_ca.as_deref()).map_err(anyhow::Error::msg)?;
     let auth = Auth::new(c.token.as_deref()).map_err(anyhow::Error::msg)?;
@@ -138,15 +152,7 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
         }
         ClientCmd::Show { conn, sweep } => {
             let mut c = connect(&conn).await?;
-            let s = c
-                .get_sweep(pb::GetSweepRequest { sweep_id: sweep })
-                .await?
-                .into_inner();
-            let cells = c
-                .list_cells(pb::ListCellsRequest { sweep_id: sweep })
-                .await?
-                .into_inner()
-                .cells;
+            let (s, cells) = sweep_and_cells(&mut c, sweep).await?;
             print!("{}", render_show(&s, &cells));
         }
         ClientCmd::Watch { conn, sweep, every } => {
@@ -157,15 +163,7 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
                 .await?
                 .into_inner();
             if std::io::stdout().is_terminal() && std::io::stderr().is_terminal() {
-                let s = c
-                    .get_sweep(pb::GetSweepRequest { sweep_id: sweep })
-                    .await?
-                    .into_inner();
-                let cells = c
-                    .list_cells(pb::ListCellsRequest { sweep_id: sweep })
-                    .await?
-                    .into_inner()
-                    .cells;
+                let (s, cells) = sweep_and_cells(&mut c, sweep).await?;
                 let mut bars = gaitsweep_coordinator::watch::WatchBars::new(&s, &cells, false);
                 while let Some(ev) = stream.message().await? {
                     if bars.event(&ev) {

@@ -102,18 +102,9 @@ async fn two_workers_finish_a_2x2_sweep() {
     assert_eq!(done.best_cell_id, best.0);
 
     // the CLI shows the grid and fetches the best model
-    let out = std::process::Command::new(bin("coordinator"))
-        .args([
-            "show",
-            "--connect",
-            &coord.url(),
-            &sweep.sweep_id.to_string(),
-        ])
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
+    let (ok, text) = show(&coord, sweep.sweep_id);
     assert!(
-        out.status.success() && text.contains('*') && text.contains("fall rate"),
+        ok && text.contains('*') && text.contains("fall rate"),
         "show output: {text}"
     );
     let model = tmp.path().join("best.safetensors");
@@ -497,18 +488,21 @@ async fn replicates_train_each_point_k_times_and_promote_the_best_mean() {
         .fold(f64::MIN, f64::max);
     assert_eq!(score, best_rep, "the point's best replicate is its model");
 
-    let out = std::process::Command::new(bin("coordinator"))
-        .args([
-            "show",
-            "--connect",
-            &coord.url(),
-            &sweep.sweep_id.to_string(),
-        ])
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
+    let (ok, text) = show(&coord, sweep.sweep_id);
     assert!(
-        out.status.success() && text.contains('±') && text.contains("2 replicates"),
+        ok && text.contains('±') && text.contains("2 replicates"),
         "show output: {text}"
     );
+}
+
+/// `coordinator show` of a sweep: whether it succeeded, and what it printed.
+fn show(coord: &Coord, sweep: i64) -> (bool, String) {
+    let out = std::process::Command::new(bin("coordinator"))
+        .args(["show", "--connect", &coord.url(), &sweep.to_string()])
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+    )
 }

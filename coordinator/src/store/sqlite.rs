@@ -237,7 +237,11 @@ async fn promote_point(
     let Some(point) = sched::point_result(&replicates, open) else {
         return Ok(vec![]);
     };
-    let best = cell_tx(tx, point.cell).await?;
+    let best = if point.cell == cell.id {
+        cell.clone()
+    } else {
+        cell_tx(tx, point.cell).await?
+    };
     let (sha, epochs): (Option<String>, i64) =
         sqlx::query_as("SELECT final_checkpoint_sha256, epochs FROM scores WHERE cell_id = ?")
             .bind(point.cell.0)
