@@ -5,7 +5,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // prost-build runs the protoc named by PROTOC.
     std::env::set_var("PROTOC", protoc);
     let out_dir = std::path::PathBuf::from(std::env::var("OUT_DIR")?);
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../proto");
+    // Read when the script runs, not baked in with env!: a build-script binary reused
+    // through a shared target directory read (and watched) another checkout's protos, and
+    // a proto edit here left a stale `pb`.
+    let root = std::path::PathBuf::from(std::env::var("CARGO_MANIFEST_DIR")?).join("../proto");
     let files =
         ["types.proto", "worker.proto", "client.proto"].map(|f| root.join("gaitsweep/v1").join(f));
     tonic_prost_build::configure()

@@ -208,6 +208,14 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
                             cell.score.map_or(f64::NAN, |s| s.score)
                         );
                     }
+                    Some(Kind::Decision(d)) => println!(
+                        "cell {} {} at rung {} (epoch {}, score {:.4})",
+                        d.cell_id,
+                        if d.continued { "continues" } else { "stopped" },
+                        d.rung,
+                        d.epoch,
+                        d.score
+                    ),
                     Some(Kind::Finished(s)) => {
                         println!("sweep {} {}", s.sweep_id, sweep_state(s.state));
                         break;
@@ -317,6 +325,8 @@ fn cell_state(s: i32) -> &'static str {
         pb::CellState::Done => "done",
         pb::CellState::Failed => "failed",
         pb::CellState::Cancelled => "cancelled",
+        pb::CellState::Paused => "paused",
+        pb::CellState::Stopped => "stopped",
         pb::CellState::Unspecified => "unknown",
     }
 }

@@ -2,6 +2,7 @@
 //! daemons over gRPC, stores scores, metrics and checkpoints in SQLite and promotes the
 //! best model of each sweep.
 
+pub mod asha;
 pub mod auth;
 pub mod blobs;
 pub mod error;

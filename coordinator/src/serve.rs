@@ -162,6 +162,7 @@ async fn expiry_loop<S: Store>(coord: Arc<Coordinator<S>>) {
                 Ok(out) => {
                     tracing::warn!(lease = lease.0, cell = cell.0, state = %out.cell.state, "lease expired");
                     coord.emit(sweep.0, Kind::Cell((&out.cell).into()));
+                    coord.emit_decisions(sweep.0, &out.decisions);
                     if let Some(s) = &out.finished {
                         coord.emit(sweep.0, Kind::Finished(s.into()));
                     }

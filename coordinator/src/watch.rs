@@ -118,7 +118,11 @@ impl WatchBars {
                 self.cell_bar(c.cell_id, || cell_label(c))
                     .set_position(u64::from(e));
             }
-            pb::CellState::Done | pb::CellState::Failed | pb::CellState::Cancelled => {
+            pb::CellState::Done
+            | pb::CellState::Failed
+            | pb::CellState::Cancelled
+            | pb::CellState::Paused
+            | pb::CellState::Stopped => {
                 if state == pb::CellState::Done {
                     self.cells_done += 1;
                     // A done cell counts all its epochs.
@@ -135,6 +139,9 @@ impl WatchBars {
                             s.score,
                             100.0 * s.fall_rate
                         ),
+                        (pb::CellState::Paused, _) => {
+                            format!("{}: paused at epoch {}", cell_label(c), c.epochs_done)
+                        }
                         _ => format!("{}: {}", cell_label(c), name(state.as_str_name())),
                     };
                     b.finish_and_clear();
@@ -176,6 +183,16 @@ impl WatchBars {
                     "promoted {} {on} (score {:.4})",
                     cell_label(&cell),
                     cell.score.map_or(f64::NAN, |s| s.score)
+                ));
+            }
+            Some(Kind::Decision(d)) => {
+                let _ = self.multi.println(format!(
+                    "cell {} {} at rung {} (epoch {}, score {:.4})",
+                    d.cell_id,
+                    if d.continued { "continues" } else { "stopped" },
+                    d.rung,
+                    d.epoch,
+                    d.score
                 ));
             }
             Some(Kind::Finished(s)) => {

@@ -1,8 +1,10 @@
 //! The one place that converts between wire messages (`pb`) and domain types.
 
 use crate::pb;
-use crate::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
-use crate::spec::{Axis, EvalSpec, ResolvedSpec, SweepSpec};
+use crate::records::{
+    CellRecord, CheckpointRecord, PromotionRecord, RungDecisionRecord, SweepRecord,
+};
+use crate::spec::{Axis, EvalSpec, ResolvedSpec, Search, SearchSpec, SweepSpec};
 use crate::{CellState, Error, Result, SweepState};
 use gaitsweep_model::GaitScore;
 
@@ -53,7 +55,16 @@ impl From<pb::SweepSpec> for SweepSpec {
             eval: EvalSpec {
                 robots: nonzero(s.eval_robots).map(|v| v as usize),
                 seconds: (s.eval_seconds != 0.0).then_some(s.eval_seconds),
+                every: nonzero(s.eval_every),
             },
+            search: (!s.search_method.is_empty()
+                || s.search_min_epochs != 0
+                || s.search_reduction != 0)
+                .then(|| SearchSpec {
+                    method: s.search_method,
+                    min_epochs: nonzero(s.search_min_epochs),
+                    reduction: nonzero(s.search_reduction),
+                }),
         }
     }
 }
@@ -86,6 +97,19 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
             eval_robots: s.eval_robots as u32,
             eval_seconds: s.eval_seconds,
             seeds: s.replicates,
+            eval_every: s.eval_every,
+            search_method: match s.search {
+                Search::Grid => "grid".into(),
+                Search::Asha { .. } => "asha".into(),
+            },
+            search_min_epochs: match s.search {
+                Search::Asha { min_epochs, .. } => min_epochs,
+                Search::Grid => 0,
+            },
+            search_reduction: match s.search {
+                Search::Asha { reduction, .. } => reduction,
+                Search::Grid => 0,
+            },
         }
     }
 }
@@ -132,6 +156,8 @@ impl From<CellState> for pb::CellState {
             CellState::Done => pb::CellState::Done,
             CellState::Failed => pb::CellState::Failed,
             CellState::Cancelled => pb::CellState::Cancelled,
+            CellState::Paused => pb::CellState::Paused,
+            CellState::Stopped => pb::CellState::Stopped,
         }
     }
 }
@@ -145,6 +171,8 @@ impl TryFrom<pb::CellState> for CellState {
             pb::CellState::Done => CellState::Done,
             pb::CellState::Failed => CellState::Failed,
             pb::CellState::Cancelled => CellState::Cancelled,
+            pb::CellState::Paused => CellState::Paused,
+            pb::CellState::Stopped => CellState::Stopped,
             pb::CellState::Unspecified => {
                 return Err(Error::UnknownValue {
                     what: "cell state",
@@ -193,11 +221,12 @@ pub fn cell_task(cell: &CellRecord, spec: &ResolvedSpec) -> pb::CellTask {
         robot: spec.robot.clone(),
         difficulty: spec.difficulty.map(u32::from),
         agents: spec.agents_per_cell as u32,
-        epochs: spec.epochs,
+        epochs: cell.target_epochs,
         checkpoint_every: spec.checkpoint_every,
         ppo_overrides: spec.ppo_overrides.clone(),
         eval_robots: spec.eval_robots as u32,
         eval_seconds: spec.eval_seconds,
+        eval_every: spec.eval_every,
     }
 }
 
@@ -219,6 +248,7 @@ impl From<&CellRecord> for pb::Cell {
             last_error: c.last_error.clone().unwrap_or_default(),
             seed: c.seed,
             replicate: c.replicate,
+            target_epochs: c.target_epochs,
         }
     }
 }
@@ -235,6 +265,8 @@ impl From<&SweepRecord> for pb::Sweep {
             cells_running: s.cells_running,
             cells_done: s.cells_done,
             cells_failed: s.cells_failed,
+            cells_paused: s.cells_paused,
+            cells_stopped: s.cells_stopped,
             w1_values: s.spec.w1_values.clone(),
             w2_values: s.spec.w2_values.clone(),
             best_cell_id: s.best_cell.map_or(0, |c| c.0),
@@ -263,5 +295,17 @@ pub fn spec_from_request(req: pb::CreateSweepRequest) -> Result<SweepSpec> {
             message: "CreateSweepRequest",
             field: "spec",
         }),
+    }
+}
+
+impl From<&RungDecisionRecord> for pb::RungDecision {
+    fn from(d: &RungDecisionRecord) -> Self {
+        pb::RungDecision {
+            cell_id: d.cell.id.0,
+            rung: d.rung,
+            epoch: d.epoch,
+            score: d.score,
+            continued: d.continued,
+        }
     }
 }

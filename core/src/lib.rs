@@ -16,7 +16,7 @@ pub mod tensorboard;
 
 pub use error::{Error, Result};
 pub use ids::{CellId, LeaseId, SweepId, WorkerId};
-pub use spec::{Axis, CellPlan, ResolvedSpec, SweepSpec};
+pub use spec::{Axis, CellPlan, ResolvedSpec, Search, SearchSpec, SweepSpec};
 pub use state::{CellState, SweepState};
 
 /// Generated protobuf messages and tonic clients/servers of package `gaitsweep.v1`.

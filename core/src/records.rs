@@ -44,6 +44,9 @@ pub struct CellRecord {
     pub attempts: u32,
     /// Last epoch reported.
     pub epochs_done: u32,
+    /// Epochs the cell trains to before its next decision (the spec's epochs for a grid,
+    /// the next rung under successive halving).
+    pub target_epochs: u32,
     /// Score once done.
     pub score: Option<GaitScore>,
     /// Last error of a failed attempt.
@@ -71,6 +74,10 @@ pub struct SweepRecord {
     pub cells_done: u32,
     /// Cells failed.
     pub cells_failed: u32,
+    /// Cells paused at a successive-halving rung.
+    pub cells_paused: u32,
+    /// Cells stopped by successive halving.
+    pub cells_stopped: u32,
     /// Promoted cell over all terrains.
     pub best_cell: Option<CellId>,
 }
@@ -88,4 +95,19 @@ pub struct PromotionRecord {
     pub checkpoint: Option<CheckpointRecord>,
     /// Promotion time, unix ms.
     pub promoted_unix_ms: i64,
+}
+
+/// A successive-halving decision on a cell at a rung, as stored in `rung_decisions`.
+#[derive(Debug, Clone)]
+pub struct RungDecisionRecord {
+    /// The cell after the decision.
+    pub cell: CellRecord,
+    /// Rung index, from 0.
+    pub rung: u32,
+    /// Epochs of the rung.
+    pub epoch: u32,
+    /// The cell's score at the rung.
+    pub score: f64,
+    /// True: it trains on to the next rung; false: it stopped.
+    pub continued: bool,
 }

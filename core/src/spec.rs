@@ -53,7 +53,47 @@ pub struct EvalSpec {
     pub robots: Option<usize>,
     /// Length of the rollout in seconds.
     pub seconds: Option<f32>,
+    /// Evaluate the deterministic policy every this many epochs as well (stored per cell
+    /// and epoch in `evaluations`); unset or 0: only at the end and at rungs.
+    #[serde(default)]
+    pub every: Option<u32>,
 }
+
+/// How a sweep spends its epochs, as a user writes it (`[search]`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SearchSpec {
+    /// `grid` (every cell to the end, the default) or `asha` (asynchronous successive
+    /// halving).
+    pub method: String,
+    /// ASHA: epochs of the first rung (default: epochs / reduction^3, at least 1).
+    #[serde(default)]
+    pub min_epochs: Option<u32>,
+    /// ASHA: the reduction factor eta; a rung continues the top 1/eta (default 3).
+    #[serde(default)]
+    pub reduction: Option<u32>,
+}
+
+/// How a sweep spends its epochs, resolved.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "method", rename_all = "lowercase")]
+pub enum Search {
+    /// Every cell trains all its epochs.
+    #[default]
+    Grid,
+    /// Asynchronous successive halving (Li et al. 2020): every cell trains to the first
+    /// rung; a cell continues to the next rung only while it is in the top 1/`reduction`
+    /// of the cells that reached its rung.
+    Asha {
+        /// Epochs of the first rung.
+        min_epochs: u32,
+        /// Reduction factor eta (>= 2).
+        reduction: u32,
+    },
+}
+
+/// Default ASHA reduction factor (Li et al. 2020 use 3 or 4).
+pub const DEFAULT_REDUCTION: u32 = 3;
 
 /// A sweep spec as a user writes it (TOML) or sends it (gRPC); unset fields fall back to
 /// the robot preset's grid or to defaults when resolved.
@@ -98,6 +138,9 @@ pub struct SweepSpec {
     /// Evaluation rollout.
     #[serde(default)]
     pub eval: EvalSpec,
+    /// Search strategy (default: the full grid).
+    #[serde(default)]
+    pub search: Option<SearchSpec>,
 }
 
 /// A validated spec with every default filled in: what the coordinator stores and runs.
@@ -133,6 +176,12 @@ pub struct ResolvedSpec {
     pub eval_robots: usize,
     /// Evaluation seconds.
     pub eval_seconds: f32,
+    /// Intermediate evaluations every this many epochs (0: none).
+    #[serde(default)]
+    pub eval_every: u32,
+    /// Search strategy (specs stored before searches existed read as the grid).
+    #[serde(default)]
+    pub search: Search,
 }
 
 /// One cell of an expanded grid.
@@ -316,6 +365,12 @@ impl SweepSpec {
                 problems.push(format!("ppo.{k} is not a finite number"));
             }
         }
+        let search = self.resolve_search(epochs, &mut problems);
+        if !matches!(search, Search::Grid) && self.seeds.unwrap_or(1) > 1 {
+            problems.push(
+                "search.method asha ranks single training runs: use seeds = 1 with it".into(),
+            );
+        }
         let replicates = self.seeds.unwrap_or(1);
         if replicates == 0 || replicates > MAX_REPLICATES {
             problems.push(format!(
@@ -355,7 +410,52 @@ impl SweepSpec {
             ppo_overrides: self.ppo.clone(),
             eval_robots: self.eval.robots.unwrap_or(defaults::EVAL_ROBOTS),
             eval_seconds: self.eval.seconds.unwrap_or(defaults::EVAL_SECONDS),
+            eval_every: self.eval.every.unwrap_or(0),
+            search,
         })
+    }
+
+    fn resolve_search(&self, epochs: u32, problems: &mut Vec<String>) -> Search {
+        let Some(s) = &self.search else {
+            return Search::Grid;
+        };
+        match s.method.trim() {
+            "" | "grid" => {
+                if s.min_epochs.is_some() || s.reduction.is_some() {
+                    problems.push(
+                        "search.min_epochs and search.reduction belong to method = \"asha\"".into(),
+                    );
+                }
+                Search::Grid
+            }
+            "asha" => {
+                let reduction = s.reduction.unwrap_or(DEFAULT_REDUCTION);
+                if reduction < 2 {
+                    problems.push(format!(
+                        "search.reduction is {reduction}: use 2 or more (each rung keeps the top 1/reduction)"
+                    ));
+                }
+                let min_epochs = s
+                    .min_epochs
+                    .unwrap_or_else(|| (epochs / reduction.max(2).pow(3)).max(1));
+                if min_epochs == 0 || (epochs > 0 && min_epochs >= epochs) {
+                    problems.push(format!(
+                        "search.min_epochs is {min_epochs}: use 1 to {} (less than epochs, so there is a rung before the end)",
+                        epochs.saturating_sub(1)
+                    ));
+                }
+                Search::Asha {
+                    min_epochs,
+                    reduction,
+                }
+            }
+            other => {
+                problems.push(format!(
+                    "search.method {other:?} is unknown: use \"grid\" or \"asha\""
+                ));
+                Search::Grid
+            }
+        }
     }
 }
 
@@ -401,6 +501,25 @@ impl ResolvedSpec {
                 }
             }
         }
+        out
+    }
+
+    /// The epochs at which a cell's training is evaluated and decided on: for the grid
+    /// only the last; for ASHA `min_epochs * reduction^k` below `epochs`, then `epochs`.
+    pub fn rungs(&self) -> Vec<u32> {
+        let mut out = Vec::new();
+        if let Search::Asha {
+            min_epochs,
+            reduction,
+        } = self.search
+        {
+            let mut r = u64::from(min_epochs.max(1));
+            while r < u64::from(self.epochs) {
+                out.push(r as u32);
+                r *= u64::from(reduction.max(2));
+            }
+        }
+        out.push(self.epochs);
         out
     }
 
@@ -473,6 +592,69 @@ mod tests {
 
     fn ok(_: &str) -> std::result::Result<(PresetGrid, Option<String>), String> {
         Ok((grid(), None))
+    }
+
+    #[test]
+    fn asha_rungs_grow_by_the_reduction_up_to_the_budget() {
+        let base = "robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\n";
+        let r = SweepSpec::from_toml(&format!(
+            "{base}eval = {{ every = 50 }}\n[search]\nmethod = \"asha\"\nmin_epochs = 100\nreduction = 3\n"
+        ))
+        .unwrap()
+        .resolve_with(ok)
+        .unwrap();
+        assert_eq!(
+            r.search,
+            Search::Asha {
+                min_epochs: 100,
+                reduction: 3
+            }
+        );
+        assert_eq!(r.rungs(), vec![100, 300, 900, 2700, 3000]);
+        assert_eq!(r.eval_every, 50);
+        // Defaults: reduction 3, first rung at epochs / 27.
+        let d = SweepSpec::from_toml(&format!("{base}[search]\nmethod = \"asha\"\n"))
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap();
+        assert_eq!(d.rungs(), vec![111, 333, 999, 2997, 3000]);
+        // A grid has one rung, the end; a stored spec without `search` reads as a grid.
+        let g = SweepSpec::from_toml(base)
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap();
+        assert_eq!((g.search, g.rungs()), (Search::Grid, vec![3000]));
+        let mut json = serde_json::to_value(&g).unwrap();
+        json.as_object_mut().unwrap().remove("search");
+        json.as_object_mut().unwrap().remove("eval_every");
+        let old: ResolvedSpec = serde_json::from_value(json).unwrap();
+        assert_eq!((old.search, old.eval_every), (Search::Grid, 0));
+        // The wire form round-trips.
+        let wire = crate::pb::SweepSpec::from(&r);
+        let back = SweepSpec::from(wire).resolve_with(ok).unwrap();
+        assert_eq!((back.search, back.eval_every), (r.search, 50));
+    }
+
+    #[test]
+    fn bad_searches_are_named() {
+        let base = "robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\n";
+        let err = |extra: &str| {
+            SweepSpec::from_toml(&format!("{base}{extra}"))
+                .unwrap()
+                .resolve_with(ok)
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(
+            err("[search]\nmethod = \"bayes\"\n").contains("search.method \"bayes\" is unknown")
+        );
+        assert!(
+            err("[search]\nmethod = \"asha\"\nreduction = 1\n").contains("search.reduction is 1")
+        );
+        assert!(err("[search]\nmethod = \"asha\"\nmin_epochs = 3000\n")
+            .contains("search.min_epochs is 3000"));
+        assert!(err("seeds = 2\n[search]\nmethod = \"asha\"\n").contains("use seeds = 1"));
+        assert!(err("[search]\nmethod = \"grid\"\nreduction = 3\n").contains("belong to method"));
     }
 
     #[test]

@@ -17,6 +17,10 @@ pub enum CellState {
     Failed,
     /// Its sweep was cancelled.
     Cancelled,
+    /// Reached a rung of successive halving and waits for the rung's decision.
+    Paused,
+    /// Stopped by successive halving at a rung; its evaluations and checkpoints stay.
+    Stopped,
 }
 
 impl CellState {
@@ -28,12 +32,17 @@ impl CellState {
             Self::Done => "done",
             Self::Failed => "failed",
             Self::Cancelled => "cancelled",
+            Self::Paused => "paused",
+            Self::Stopped => "stopped",
         }
     }
 
     /// True for states a cell never leaves.
     pub fn is_terminal(self) -> bool {
-        matches!(self, Self::Done | Self::Failed | Self::Cancelled)
+        matches!(
+            self,
+            Self::Done | Self::Failed | Self::Cancelled | Self::Stopped
+        )
     }
 }
 
@@ -52,6 +61,8 @@ impl FromStr for CellState {
             "done" => Self::Done,
             "failed" => Self::Failed,
             "cancelled" => Self::Cancelled,
+            "paused" => Self::Paused,
+            "stopped" => Self::Stopped,
             _ => {
                 return Err(Error::UnknownValue {
                     what: "cell state",

@@ -124,6 +124,34 @@ impl Agent {
         let yaw = self.rng.random_range(-PI..PI);
         let z = self.world.tile().height(x, y) + p.spawn_height;
         self.world.reset(x, y, z, yaw, &p.default_pose);
+        let r = p.reset;
+        if r.dof_pos_scale != [1.0, 1.0] {
+            // A pose with straighter legs than the default would start with its feet in
+            // the ground: raise it until its lowest foot is where the default pose's is.
+            let foot_z = self.world.lowest_foot_z();
+            let mut q = [0.0f32; NJ];
+            for (k, qk) in q.iter_mut().enumerate() {
+                let s = self
+                    .rng
+                    .random_range(r.dof_pos_scale[0]..=r.dof_pos_scale[1]);
+                *qk = p.default_pose[k] * s;
+                if let Some([lo, hi]) = self.world.joint_limits()[k] {
+                    *qk = qk.clamp(lo, hi);
+                }
+            }
+            self.world.reset(x, y, z, yaw, &q);
+            let lift = (foot_z - self.world.lowest_foot_z()).max(0.0);
+            if lift > 0.0 {
+                self.world.reset(x, y, z + lift, yaw, &q);
+            }
+        }
+        if r.base_vel > 0.0 {
+            let v = r.base_vel;
+            let mut draw = || self.rng.random_range(-v..=v);
+            let lin = Vector::new(draw(), draw(), draw());
+            let ang = Vector::new(draw(), draw(), draw());
+            self.world.set_base_velocity(lin, ang);
+        }
         self.origin = [x, y];
         self.last_pos = [x, y];
         self.actions = [0.0; NJ];

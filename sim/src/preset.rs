@@ -8,7 +8,7 @@ use crate::error::{Error, Result};
 
 pub use gaitsweep_model::preset::{
     available, preset_dir, robots_dir, AxisSpec, CommandConfig, ControlConfig, DomainRandConfig,
-    GridSpec, JointBackend, ObservationConfig, PpoConfig, PresetFile, RewardConfig,
+    GridSpec, JointBackend, ObservationConfig, PpoConfig, PresetFile, ResetConfig, RewardConfig,
 };
 
 /// A robot preset: its URDF, control, observation, reward and grid settings.
@@ -46,6 +46,8 @@ pub struct Preset {
     pub ppo: PpoConfig,
     /// Domain randomization and observation noise in training.
     pub domain_rand: DomainRandConfig,
+    /// Randomized episode starts.
+    pub reset: ResetConfig,
     /// sha256 of the preset file and the URDF: checkpoints record it.
     pub digest: String,
 }
@@ -144,6 +146,22 @@ impl Preset {
                     .into(),
             );
         }
+        let r = &file.reset;
+        if !(r.dof_pos_scale[0] >= 0.0
+            && r.dof_pos_scale[0] <= r.dof_pos_scale[1]
+            && r.dof_pos_scale[1].is_finite())
+        {
+            problems.push(format!(
+                "reset.dof_pos_scale: expected [lo, hi] with 0 <= lo <= hi, found {:?}",
+                r.dof_pos_scale
+            ));
+        }
+        if !(r.base_vel >= 0.0 && r.base_vel.is_finite()) {
+            problems.push(format!(
+                "reset.base_vel: expected a finite value >= 0 m/s, found {}",
+                r.base_vel
+            ));
+        }
         if !problems.is_empty() {
             return Err(err(problems.join("; ")));
         }
@@ -169,6 +187,7 @@ impl Preset {
             grid: file.grid,
             ppo: file.ppo,
             domain_rand: file.domain_rand,
+            reset: file.reset,
             digest,
         })
     }

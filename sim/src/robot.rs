@@ -593,6 +593,39 @@ impl RobotWorld {
         }
     }
 
+    /// Sets the base's linear and angular velocity (world frame), the legs moving with it
+    /// as one rigid body (legged_gym's `_reset_root_states`).
+    pub fn set_base_velocity(&mut self, lin: Vector, ang: Vector) {
+        if self.backend == JointBackend::Multibody {
+            let (mb, bodies) = self.multibody_mut_with_bodies();
+            // A free root's generalized velocities: linear, then angular, world frame.
+            let mut v = mb.generalized_velocity_mut();
+            for i in 0..3 {
+                v[i] = lin[i];
+                v[3 + i] = ang[i];
+            }
+            mb.update_rigid_bodies(bodies, true);
+            // The link bodies' own velocities are what the next observation reads; rapier
+            // copies the multibody's into them only in a step.
+        }
+        let origin = self.world.bodies[self.bodies[0]].translation();
+        for h in &self.bodies {
+            let rb = &mut self.world.bodies[*h];
+            let r = rb.translation() - origin;
+            rb.set_linvel(lin + ang.cross(r), false);
+            rb.set_angvel(ang, false);
+        }
+    }
+
+    /// Height of the lowest foot shape's centre (world), from the bodies' current poses,
+    /// so it holds right after a reset, before any step.
+    pub fn lowest_foot_z(&self) -> f32 {
+        self.feet
+            .iter()
+            .map(|h| self.collider_center(*h).z)
+            .fold(f32::INFINITY, f32::min)
+    }
+
     /// Whether the base touches the terrain (a fall).
     pub fn base_contact(&self) -> bool {
         self.touching(self.base_collider)
@@ -608,10 +641,17 @@ impl RobotWorld {
 
     /// World positions of the feet (sphere centres).
     pub fn foot_positions(&self) -> Vec<Vector> {
-        self.feet
-            .iter()
-            .map(|h| self.world.colliders[*h].position().translation)
-            .collect()
+        self.feet.iter().map(|h| self.collider_center(*h)).collect()
+    }
+
+    /// A collider's centre from its body's pose: rapier moves colliders with their bodies
+    /// only in a step, so right after a reset `Collider::position` is stale.
+    fn collider_center(&self, h: ColliderHandle) -> Vector {
+        let c = &self.world.colliders[h];
+        match (c.parent(), c.position_wrt_parent()) {
+            (Some(b), Some(rel)) => (*self.world.bodies[b].position() * *rel).translation,
+            _ => c.position().translation,
+        }
     }
 
     /// The default joint pose.

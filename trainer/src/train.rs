@@ -53,6 +53,9 @@ pub struct CellRunConfig {
     pub eval_robots: usize,
     /// Episode length of the final evaluation (s).
     pub eval_seconds: f32,
+    /// Evaluate the deterministic policy every this many epochs as well and log it as
+    /// `eval/*` (0: only the final evaluation).
+    pub eval_every: u32,
 }
 
 /// Per-epoch metrics: every reward term mean (`reward/<term>`), losses, KL, learning rate,
@@ -92,9 +95,8 @@ pub struct CellOutcome {
 /// Options of a run that are not part of the cell's identity.
 #[derive(Clone, Debug, Default)]
 pub struct TrainOptions {
-    /// Evaluate every this many epochs and log `eval/*` (tracking error, fall rate, score).
-    pub eval_every: Option<u32>,
-    /// Robots of those intermediate evaluations (default: `eval_robots`).
+    /// Robots of the intermediate evaluations (`CellRunConfig::eval_every`; default:
+    /// `eval_robots`).
     pub eval_robots: Option<usize>,
 }
 
@@ -356,18 +358,22 @@ pub fn train_cell_with(
         }
         let stats = runner.run_epoch()?;
         let mut m = epoch_metrics(&stats, t0.elapsed().as_secs_f64());
-        if let Some(every) = opts.eval_every.filter(|&e| e > 0) {
-            if runner.epoch % every == 0 {
-                let te = Instant::now();
-                let robots = opts.eval_robots.unwrap_or(cfg.eval_robots);
-                let s = eval_policy(&preset, cfg, &runner.ppo, robots)?;
-                m.values.insert("eval/score".into(), s.score);
-                m.values
-                    .insert("eval/mean_vel_error".into(), s.mean_vel_error);
-                m.values.insert("eval/fall_rate".into(), s.fall_rate);
-                m.values.insert("eval/track".into(), s.track);
-                m.values
-                    .insert("eval/seconds".into(), te.elapsed().as_secs_f64());
+        if cfg.eval_every > 0 && runner.epoch % cfg.eval_every == 0 && runner.epoch < cfg.epochs {
+            let te = Instant::now();
+            let robots = opts.eval_robots.unwrap_or(cfg.eval_robots);
+            let s = eval_policy(&preset, cfg, &runner.ppo, robots)?;
+            for (k, v) in [
+                ("score", s.score),
+                ("track", s.track),
+                ("effort", s.effort),
+                ("tilt", s.tilt),
+                ("progress", s.progress),
+                ("fall_rate", s.fall_rate),
+                ("mean_vel_error", s.mean_vel_error),
+                ("robots", s.robots as f64),
+                ("seconds", te.elapsed().as_secs_f64()),
+            ] {
+                m.values.insert(format!("eval/{k}"), v);
             }
         }
         observer.on_epoch(&m);

@@ -49,6 +49,7 @@ fn cfg(out: &Path, epochs: u32, resume: Option<PathBuf>) -> CellRunConfig {
             .collect::<BTreeMap<_, _>>(),
         eval_robots: 2,
         eval_seconds: 1.0,
+        eval_every: 0,
     }
 }
 

@@ -194,6 +194,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         ppo_overrides: parse_overrides(&a.set)?,
         eval_robots: a.eval_robots,
         eval_seconds: a.eval_seconds,
+        eval_every: a.eval_every.unwrap_or(0),
     };
     let start = match &cfg.resume_from {
         Some(p) => {
@@ -204,10 +205,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         None => 0,
     };
     let mut obs = LocalObserver::new(&cfg.out_dir, start, cfg.epochs, a.quiet)?;
-    let opts = TrainOptions {
-        eval_every: a.eval_every,
-        eval_robots: None,
-    };
+    let opts = TrainOptions { eval_robots: None };
     let outcome = train::train_cell_with(&cfg, &opts, &mut obs)?;
     obs.bar.finish();
     let s = &outcome.score;

@@ -285,6 +285,8 @@ fn spec() -> ResolvedSpec {
         ppo_overrides: Default::default(),
         eval_robots: 0,
         eval_seconds: 0.0,
+        eval_every: 0,
+        search: Default::default(),
     }
 }
 

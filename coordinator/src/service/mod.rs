@@ -9,6 +9,7 @@ use crate::leases::LeaseTable;
 use crate::store::Store;
 use crate::Result;
 use gaitsweep_core::pb;
+use gaitsweep_core::records::RungDecisionRecord;
 use std::sync::Arc;
 use std::time::{SystemTime, UNIX_EPOCH};
 use tokio::sync::{broadcast, mpsc};
@@ -83,6 +84,15 @@ impl<S: Store> Coordinator<S> {
             unix_ms: now_ms(),
             kind: Some(kind),
         });
+    }
+
+    /// Sends successive halving's decisions: each as a decision and as its cell's new
+    /// state.
+    pub fn emit_decisions(&self, sweep_id: i64, decisions: &[RungDecisionRecord]) {
+        for d in decisions {
+            self.emit(sweep_id, pb::sweep_event::Kind::Decision(d.into()));
+            self.emit(sweep_id, pb::sweep_event::Kind::Cell((&d.cell).into()));
+        }
     }
 
     /// Streams a stored checkpoint in chunks.

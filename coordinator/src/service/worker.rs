@@ -211,10 +211,12 @@ impl<S: Store> WorkerService for WorkerApi<S> {
                 lease = r.lease_id,
                 cell = out.cell.id.0,
                 score = score.score,
-                "cell done"
+                state = %out.cell.state,
+                "cell result stored"
             );
             let sweep = out.cell.sweep_id.0;
             self.0.emit(sweep, Kind::Cell((&out.cell).into()));
+            self.0.emit_decisions(sweep, &out.decisions);
             for p in &out.promotions {
                 tracing::info!(
                     sweep,
@@ -255,6 +257,7 @@ impl<S: Store> WorkerService for WorkerApi<S> {
         tracing::warn!(lease = lease.0, cell = out.cell.id.0, error = %r.error, state = %out.cell.state, "attempt failed");
         let sweep = out.cell.sweep_id.0;
         self.0.emit(sweep, Kind::Cell((&out.cell).into()));
+        self.0.emit_decisions(sweep, &out.decisions);
         if let Some(s) = &out.finished {
             self.0.emit(sweep, Kind::Finished(s.into()));
         }
@@ -289,6 +292,7 @@ impl<S: Store> WorkerService for WorkerApi<S> {
         tracing::info!(lease = lease.0, cell = out.cell.id.0, state = %out.cell.state, "lease released");
         let sweep = out.cell.sweep_id.0;
         self.0.emit(sweep, Kind::Cell((&out.cell).into()));
+        self.0.emit_decisions(sweep, &out.decisions);
         if let Some(s) = &out.finished {
             self.0.emit(sweep, Kind::Finished(s.into()));
         }

@@ -2,12 +2,15 @@
 //! implementation is [`sqlite::SqliteStore`].
 
 pub mod rows;
+mod search;
 pub mod sqlite;
 #[cfg(test)]
 mod tests;
 
 use crate::Result;
-use gaitsweep_core::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
+use gaitsweep_core::records::{
+    CellRecord, CheckpointRecord, PromotionRecord, RungDecisionRecord, SweepRecord,
+};
 use gaitsweep_core::{CellId, LeaseId, ResolvedSpec, SweepId, WorkerId};
 use gaitsweep_model::GaitScore;
 use std::collections::BTreeMap;
@@ -65,6 +68,8 @@ pub struct ResultOutcome {
     pub cell: CellRecord,
     /// New promotions (overall and per terrain).
     pub promotions: Vec<PromotionRecord>,
+    /// Successive-halving decisions this result made due.
+    pub decisions: Vec<RungDecisionRecord>,
     /// The sweep, if this report finished it.
     pub finished: Option<SweepRecord>,
 }
@@ -74,6 +79,9 @@ pub struct ResultOutcome {
 pub struct AttemptOutcome {
     /// The cell after the attempt ended.
     pub cell: CellRecord,
+    /// Successive-halving decisions the end of the attempt made due (a cell that failed
+    /// for good can close a rung).
+    pub decisions: Vec<RungDecisionRecord>,
     /// The sweep, if this finished it.
     pub finished: Option<SweepRecord>,
 }

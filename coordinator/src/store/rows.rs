@@ -81,6 +81,8 @@ pub struct CellRow {
     pub attempts: i64,
     /// Epochs trained.
     pub epochs_done: i64,
+    /// Epochs to train to before the next decision.
+    pub target_epochs: i64,
     /// Last error.
     pub last_error: Option<String>,
     /// The score columns.
@@ -91,7 +93,7 @@ pub struct CellRow {
 /// The columns [`CellRow`] reads: `cells c LEFT JOIN scores s`.
 pub const CELL_COLUMNS: &str =
     "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, \
-     c.seed, c.replicate, c.state, c.attempts, c.epochs_done, c.last_error, s.score, s.track, s.effort, s.tilt, \
+     c.seed, c.replicate, c.state, c.attempts, c.epochs_done, c.target_epochs, c.last_error, s.score, s.track, s.effort, s.tilt, \
      s.progress, s.fall_rate, s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots";
 
 impl TryFrom<CellRow> for CellRecord {
@@ -111,6 +113,7 @@ impl TryFrom<CellRow> for CellRecord {
             state: CellState::from_str(&r.state)?,
             attempts: r.attempts as u32,
             epochs_done: r.epochs_done as u32,
+            target_epochs: r.target_epochs as u32,
             score: r.score.into_score(),
             last_error: r.last_error,
         })
@@ -138,6 +141,10 @@ pub struct SweepRow {
     pub done: i64,
     /// Cells failed.
     pub failed: i64,
+    /// Cells paused at a rung.
+    pub paused: i64,
+    /// Cells stopped by successive halving.
+    pub stopped: i64,
     /// The promoted cell over all terrains.
     pub best: Option<i64>,
 }
@@ -149,6 +156,8 @@ pub const SWEEP_COLUMNS: &str = "w.id, w.spec_json, w.state, w.created_unix_ms, 
      (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'running') AS running, \
      (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'done') AS done, \
      (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'failed') AS failed, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'paused') AS paused, \
+     (SELECT COUNT(*) FROM cells c WHERE c.sweep_id = w.id AND c.state = 'stopped') AS stopped, \
      (SELECT p.cell_id FROM promotions p WHERE p.sweep_id = w.id AND p.terrain = '' ORDER BY p.id DESC LIMIT 1) AS best";
 
 /// The spec stored with a sweep, typed, with every default filled in (specs stored by
@@ -170,6 +179,8 @@ impl TryFrom<SweepRow> for SweepRecord {
             cells_running: r.running as u32,
             cells_done: r.done as u32,
             cells_failed: r.failed as u32,
+            cells_paused: r.paused as u32,
+            cells_stopped: r.stopped as u32,
             best_cell: r.best.map(CellId),
         })
     }

@@ -2,6 +2,7 @@
 //! start with `BEGIN IMMEDIATE` (so they never fail on a busy snapshot), a pool of readers.
 
 use super::rows::{spec_of, CellRow, SweepRow, CELL_COLUMNS, SWEEP_COLUMNS};
+use super::search::{apply_asha, record_periodic_eval, rung_result};
 use super::{
     AttemptEnd, AttemptOutcome, LeaseGrant, ResultOutcome, RunningLease, Store, WorkerInfo,
 };
@@ -29,7 +30,7 @@ pub struct SqliteStore {
     read: SqlitePool,
 }
 
-type Tx = Transaction<'static, Sqlite>;
+pub(super) type Tx = Transaction<'static, Sqlite>;
 
 impl SqliteStore {
     /// Opens (creating if needed) the database file and applies the migrations.
@@ -102,7 +103,7 @@ fn sweep_from_row(r: &SqliteRow) -> Result<SweepRecord> {
     SweepRow::from_row(r)?.try_into()
 }
 
-async fn cell_tx(tx: &mut Tx, id: CellId) -> Result<CellRecord> {
+pub(super) async fn cell_tx(tx: &mut Tx, id: CellId) -> Result<CellRecord> {
     let sql = format!(
         "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.id = ?"
     );
@@ -123,22 +124,24 @@ async fn sweep_tx(tx: &mut Tx, id: SweepId) -> Result<SweepRecord> {
 }
 
 /// What a lease id refers to.
-struct LeaseCell {
+pub(super) struct LeaseCell {
     cell: CellId,
     sweep: SweepId,
     /// The cell's state.
     state: CellState,
     /// The attempt's state.
     attempt_state: String,
-    /// The epochs the cell trains in total.
+    /// The epochs the cell trains to in this attempt (its target: a rung or the end).
     epochs: u32,
+    /// The spec's epochs: a result at fewer is a rung result.
+    total: u32,
 }
 
 /// The cell, its state and its epochs for a lease id.
-async fn lease_cell(tx: &mut Tx, lease: LeaseId) -> Result<LeaseCell> {
+pub(super) async fn lease_cell(tx: &mut Tx, lease: LeaseId) -> Result<LeaseCell> {
     let row = sqlx::query(
         "SELECT a.cell_id, c.sweep_id, c.state, a.state AS attempt_state, \
-         json_extract(w.spec_json, '$.epochs') AS epochs FROM attempts a \
+         c.target_epochs AS epochs, json_extract(w.spec_json, '$.epochs') AS total FROM attempts a \
          JOIN cells c ON c.id = a.cell_id JOIN sweeps w ON w.id = c.sweep_id WHERE a.id = ?",
     )
     .bind(lease.0)
@@ -151,15 +154,20 @@ async fn lease_cell(tx: &mut Tx, lease: LeaseId) -> Result<LeaseCell> {
         state: CellState::from_str(row.try_get("state")?)?,
         attempt_state: row.try_get("attempt_state")?,
         epochs: row.try_get::<i64, _>("epochs")? as u32,
+        total: row.try_get::<i64, _>("total")? as u32,
     })
 }
 
 /// Refuses reports for cells that are finished, cancelled or failed for good (a late
 /// report must not revive a failed cell).
-fn refuse_closed(cell: CellId, state: CellState) -> Result<()> {
+pub(super) fn refuse_closed(cell: CellId, state: CellState) -> Result<()> {
     if matches!(
         state,
-        CellState::Done | CellState::Cancelled | CellState::Failed
+        CellState::Done
+            | CellState::Cancelled
+            | CellState::Failed
+            | CellState::Paused
+            | CellState::Stopped
     ) {
         return Err(Error::CellClosed {
             cell,
@@ -170,9 +178,13 @@ fn refuse_closed(cell: CellId, state: CellState) -> Result<()> {
 }
 
 /// Marks the sweep done if no cell is open any more; returns it if so.
-async fn finish_if_done(tx: &mut Tx, sweep: SweepId, now_ms: i64) -> Result<Option<SweepRecord>> {
+pub(super) async fn finish_if_done(
+    tx: &mut Tx,
+    sweep: SweepId,
+    now_ms: i64,
+) -> Result<Option<SweepRecord>> {
     let open: i64 = sqlx::query_scalar(
-        "SELECT COUNT(*) FROM cells WHERE sweep_id = ? AND state IN ('queued', 'running')",
+        "SELECT COUNT(*) FROM cells WHERE sweep_id = ? AND state IN ('queued', 'running', 'paused')",
     )
     .bind(sweep.0)
     .fetch_one(&mut **tx)
@@ -194,7 +206,7 @@ async fn finish_if_done(tx: &mut Tx, sweep: SweepId, now_ms: i64) -> Result<Opti
     Ok(Some(sweep_tx(tx, sweep).await?))
 }
 
-async fn checkpoint_of(
+pub(super) async fn checkpoint_of(
     ex: &mut Tx,
     sha: Option<String>,
     epoch: Option<i64>,
@@ -301,10 +313,11 @@ impl Store for SqliteStore {
         .bind(now_ms)
         .fetch_one(&mut *tx)
         .await?;
+        let first_target = spec.rungs()[0];
         for c in spec.cells() {
             sqlx::query(
-                "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, replicate, seed, state) \
-                 VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued')",
+                "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, replicate, seed, state, target_epochs) \
+                 VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?)",
             )
             .bind(id)
             .bind(c.terrain_index as i64)
@@ -315,6 +328,7 @@ impl Store for SqliteStore {
             .bind(c.w2)
             .bind(i64::from(c.replicate))
             .bind(c.seed as i64)
+            .bind(i64::from(first_target))
             .execute(&mut *tx)
             .await?;
         }
@@ -371,7 +385,7 @@ impl Store for SqliteStore {
             .bind(id.0)
             .execute(&mut *tx)
             .await?;
-        sqlx::query("UPDATE cells SET state = 'cancelled' WHERE sweep_id = ? AND state IN ('queued', 'running')")
+        sqlx::query("UPDATE cells SET state = 'cancelled' WHERE sweep_id = ? AND state IN ('queued', 'running', 'paused')")
             .bind(id.0)
             .execute(&mut *tx)
             .await?;
@@ -560,6 +574,9 @@ impl Store for SqliteStore {
                 .await?;
                 rows += 1;
             }
+            if let Some(score) = values.get("eval/score") {
+                record_periodic_eval(&mut tx, cell, lease, *epoch, *score, values).await?;
+            }
         }
         sqlx::query("UPDATE cells SET epochs_done = MAX(epochs_done, ?) WHERE id = ?")
             .bind(last as i64)
@@ -638,9 +655,41 @@ impl Store for SqliteStore {
             cell: cell_id,
             sweep,
             state,
-            epochs: total,
+            epochs: target,
+            total,
             ..
         } = lease_cell(&mut tx, lease).await?;
+        let rung_seen: Option<i64> =
+            sqlx::query_scalar("SELECT 1 FROM evaluations WHERE attempt_id = ? AND kind = 'rung'")
+                .bind(lease.0)
+                .fetch_optional(&mut *tx)
+                .await?;
+        if rung_seen.is_some() {
+            let cell = cell_tx(&mut tx, cell_id).await?;
+            return Ok(ResultOutcome {
+                duplicate: true,
+                cell,
+                promotions: vec![],
+                decisions: vec![],
+                finished: None,
+            });
+        }
+        if target < total {
+            let out = rung_result(
+                &mut tx,
+                lease,
+                cell_id,
+                state,
+                target,
+                score,
+                epochs,
+                final_sha256,
+                now_ms,
+            )
+            .await?;
+            tx.commit().await?;
+            return Ok(out);
+        }
         let scored: Option<i64> = sqlx::query_scalar("SELECT 1 FROM scores WHERE cell_id = ?")
             .bind(cell_id.0)
             .fetch_optional(&mut *tx)
@@ -651,11 +700,12 @@ impl Store for SqliteStore {
                 duplicate: true,
                 cell,
                 promotions: vec![],
+                decisions: vec![],
                 finished: None,
             });
         }
         refuse_closed(cell_id, state)?;
-        validate::result_epochs(total, epochs)?;
+        validate::result_epochs(target, epochs)?;
         if let Some(sha) = final_sha256 {
             let ck = checkpoint_of(&mut tx, Some(sha.to_string()), Some(epochs as i64)).await?;
             if ck.is_none() {
@@ -714,6 +764,7 @@ impl Store for SqliteStore {
             duplicate: false,
             cell,
             promotions,
+            decisions: vec![],
             finished,
         })
     }
@@ -738,6 +789,7 @@ impl Store for SqliteStore {
             let cell = cell_tx(&mut tx, cell_id).await?;
             return Ok(AttemptOutcome {
                 cell,
+                decisions: vec![],
                 finished: None,
             });
         }
@@ -774,10 +826,16 @@ impl Store for SqliteStore {
                 .execute(&mut *tx)
                 .await?;
         }
+        // A cell that failed for good may close a rung others wait at.
+        let decisions = apply_asha(&mut tx, sweep, now_ms).await?;
         let cell = cell_tx(&mut tx, cell_id).await?;
         let finished = finish_if_done(&mut tx, sweep, now_ms).await?;
         tx.commit().await?;
-        Ok(AttemptOutcome { cell, finished })
+        Ok(AttemptOutcome {
+            cell,
+            decisions,
+            finished,
+        })
     }
 
     async fn promoted(&self, id: SweepId, terrain: Option<&str>) -> Result<PromotionRecord> {

@@ -22,6 +22,8 @@ fn spec(w1: usize, w2: usize, terrains: Vec<TerrainKind>) -> ResolvedSpec {
         ppo_overrides: Default::default(),
         eval_robots: 0,
         eval_seconds: 0.0,
+        eval_every: 0,
+        search: Default::default(),
     }
 }
 
@@ -438,4 +440,172 @@ async fn replicates_promote_a_point_by_their_mean_once_all_are_done() {
     assert_eq!(best.cell.replicate, 0, "ties go to the lower id");
     let rec = store.sweep(sweep.id).await.unwrap();
     assert_eq!(rec.best_cell, Some(best.cell.id));
+}
+
+/// Uploads a leased cell's checkpoint at the epoch it trains to and reports `s` there.
+async fn report_at_target(
+    store: &SqliteStore,
+    g: &super::LeaseGrant,
+    s: f64,
+    now: i64,
+) -> super::ResultOutcome {
+    let target = g.cell.target_epochs;
+    let ck = CheckpointRecord {
+        sha256: format!("{:064x}", g.lease.0),
+        size: 10,
+        epoch: target,
+    };
+    store
+        .record_checkpoint(g.lease, &ck, "x", now)
+        .await
+        .unwrap();
+    store
+        .report_result(g.lease, &score(s), target, Some(&ck.sha256), now)
+        .await
+        .unwrap()
+}
+
+/// Leases the next cell and reports `s` at the epoch it trains to.
+async fn train_to_target(
+    store: &SqliteStore,
+    w: &WorkerId,
+    s: f64,
+    now: i64,
+) -> Option<(super::LeaseGrant, super::ResultOutcome)> {
+    let g = store.lease_next(w, 0, now).await.unwrap()?;
+    let out = report_at_target(store, &g, s, now).await;
+    Some((g, out))
+}
+
+#[tokio::test]
+async fn successive_halving_continues_the_top_third_and_stops_the_rest() {
+    let (_d, store, w) = setup().await;
+    let mut s = spec(6, 1, vec![TerrainKind::Flat]);
+    s.epochs = 9;
+    s.search = gaitsweep_core::Search::Asha {
+        min_epochs: 1,
+        reduction: 3,
+    };
+    assert_eq!(s.rungs(), vec![1, 3, 9]);
+    let sweep = store.create_sweep(&s, 0).await.unwrap();
+    // Rung 0 (epoch 1): six cells arrive with these scores, in cell order.
+    let rung0 = [0.1, 0.6, 0.3, 0.9, 0.2, 0.5];
+    let mut grants = Vec::new();
+    while let Some(g) = store.lease_next(&w, 0, 5).await.unwrap() {
+        grants.push(g);
+    }
+    assert_eq!(grants.len(), 6);
+    let mut decided = Vec::new();
+    for (i, (sc, g)) in rung0.iter().zip(&grants).enumerate() {
+        let out = report_at_target(&store, g, *sc, 10 + i as i64).await;
+        assert_eq!(
+            g.cell.target_epochs, 1,
+            "every cell trains to the first rung"
+        );
+        assert!(out.promotions.is_empty(), "a rung result promotes nothing");
+        decided.extend(out.decisions.iter().map(|d| (d.cell.id, d.continued)));
+        // A retried report of the same rung changes nothing.
+        let dup = store
+            .report_result(g.lease, &score(*sc), 1, None, 99)
+            .await
+            .unwrap();
+        assert!(dup.duplicate && dup.decisions.is_empty());
+    }
+    // ASHA continues a cell as soon as it is in the top floor(n/3): cell 2 (0.6) at n = 3;
+    // at n = 6 the top two are 0.9 and 0.6; the rung is then closed and the rest stop.
+    let cells = store.cells(sweep.id).await.unwrap();
+    let id = |i: usize| cells[i].id;
+    let cont: Vec<CellId> = decided.iter().filter(|d| d.1).map(|d| d.0).collect();
+    assert_eq!(cont, vec![id(1), id(3)]);
+    let stopped = decided.iter().filter(|d| !d.1).count();
+    assert_eq!(stopped, 4);
+    assert_eq!(
+        cells.iter().map(|c| c.state).collect::<Vec<_>>(),
+        [
+            CellState::Stopped,
+            CellState::Queued,
+            CellState::Stopped,
+            CellState::Queued,
+            CellState::Stopped,
+            CellState::Stopped
+        ]
+    );
+    // Continued cells resume from their rung checkpoint towards rung 1 (epoch 3); at rung 1
+    // two cells, floor(2/3) = 0, the closed rung still continues its best to the end.
+    let (g, out) = train_to_target(&store, &w, 0.4, 20).await.unwrap();
+    assert_eq!(
+        (g.cell.target_epochs, g.resume.as_ref().map(|r| r.epoch)),
+        (3, Some(1))
+    );
+    assert!(out.decisions.is_empty(), "rung 1 is still open");
+    let (_, out) = train_to_target(&store, &w, 0.8, 21).await.unwrap();
+    let d: Vec<(CellId, bool)> = out
+        .decisions
+        .iter()
+        .map(|d| (d.cell.id, d.continued))
+        .collect();
+    assert_eq!(d.len(), 2);
+    assert!(
+        d.contains(&(id(3), true)) && d.contains(&(id(1), false)),
+        "{d:?}"
+    );
+    // The last cell trains to the full budget, is scored and promoted; the sweep ends.
+    let (g, out) = train_to_target(&store, &w, 0.7, 22).await.unwrap();
+    assert_eq!(g.cell.id, id(3));
+    assert_eq!(g.cell.target_epochs, 9);
+    assert_eq!(out.cell.state, CellState::Done);
+    assert_eq!(out.promotions[0].cell.id, id(3));
+    let done = out.finished.expect("sweep finished");
+    assert_eq!(
+        (done.cells_done, done.cells_stopped, done.cells_paused),
+        (1, 5, 0)
+    );
+    assert!(store.lease_next(&w, 0, 30).await.unwrap().is_none());
+
+    // SQL: one rung row per (cell, rung) reached, one decision per (cell, rung).
+    let db = store.writer();
+    let evals: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM evaluations WHERE kind = 'rung'")
+        .fetch_one(db)
+        .await
+        .unwrap();
+    let decisions: Vec<(i64, i64, String)> =
+        sqlx::query_as("SELECT cell_id, rung, decision FROM rung_decisions ORDER BY rung, cell_id")
+            .fetch_all(db)
+            .await
+            .unwrap();
+    assert_eq!(evals, 8);
+    assert_eq!(decisions.len(), 8);
+    assert_eq!(
+        decisions.iter().filter(|d| d.2 == "continue").count(),
+        3,
+        "two past rung 0, one past rung 1"
+    );
+}
+
+#[tokio::test]
+async fn a_cell_failing_for_good_closes_the_rung_it_never_reached() {
+    let (_d, store, w) = setup().await;
+    let mut s = spec(2, 1, vec![TerrainKind::Flat]);
+    s.epochs = 4;
+    s.search = gaitsweep_core::Search::Asha {
+        min_epochs: 2,
+        reduction: 3,
+    };
+    store.create_sweep(&s, 0).await.unwrap();
+    let (_, out) = train_to_target(&store, &w, 0.5, 1).await.unwrap();
+    assert_eq!(out.cell.state, CellState::Paused);
+    assert!(
+        out.decisions.is_empty(),
+        "the other cell may still reach the rung"
+    );
+    let g = store.lease_next(&w, 0, 2).await.unwrap().unwrap();
+    let end = store
+        .end_attempt(g.lease, AttemptEnd::Failed, "nan", 1, 3)
+        .await
+        .unwrap();
+    assert_eq!(end.cell.state, CellState::Failed);
+    assert_eq!(end.decisions.len(), 1);
+    assert!(end.decisions[0].continued, "the rung's only cell goes on");
+    let g = store.lease_next(&w, 0, 4).await.unwrap().unwrap();
+    assert_eq!(g.cell.target_epochs, 4);
 }

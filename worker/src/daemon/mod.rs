@@ -299,6 +299,7 @@ async fn run_lease<C: Coordinator>(ctx: &Ctx<C>, slot: u32, lease: pb::Lease) ->
         ppo_overrides: task.ppo_overrides.clone(),
         eval_robots: task.eval_robots as usize,
         eval_seconds: task.eval_seconds,
+        eval_every: task.eval_every,
     };
     let (tx, mut rx) = mpsc::unbounded_channel();
     let bridge_tx = tx.clone();

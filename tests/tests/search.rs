@@ -1,0 +1,219 @@
+//! Search strategies on real processes: a successive-halving (ASHA) sweep trains every cell
+//! to its first rung, continues the best from its rung checkpoint to the end, stops the
+//! rest, and records every rung evaluation and decision in SQL.
+
+mod common;
+
+use common::*;
+use gaitsweep_core::pb;
+use std::time::Duration;
+
+const SWEEP_TIMEOUT: Duration = Duration::from_secs(600);
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn asha_continues_the_best_cell_from_its_rung_and_stops_the_rest() {
+    let _g = heavy();
+    let tmp = tempfile::tempdir().unwrap();
+    let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
+    let mut c = coord.sweeps().await;
+    let spec = "name = \"asha\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\n\
+                w1 = { values = [2.0, 5.0, 8.0] }\nw2 = { values = [-6.0] }\n\
+                agents_per_cell = 4\nepochs = 3\ncheckpoint_every = 1\nseed = 3\n\
+                eval = { robots = 2, seconds = 1.0, every = 2 }\n\
+                [search]\nmethod = \"asha\"\nmin_epochs = 1\nreduction = 3\n";
+    let sweep = create(&mut c, spec.to_string()).await;
+    assert_eq!(sweep.cells_total, 3);
+    let w = start_worker(tmp.path(), &coord.url(), "a");
+    let done = wait_done(&coord, sweep.sweep_id, SWEEP_TIMEOUT, &[&coord.proc, &w]).await;
+    assert_eq!(
+        (
+            done.state,
+            done.cells_done,
+            done.cells_stopped,
+            done.cells_paused
+        ),
+        (pb::SweepState::Done as i32, 1, 2, 0)
+    );
+
+    let db = coord.db().await;
+    // Every cell was evaluated at rung 0 (epoch 1) from its own training.
+    let rung0: Vec<(i64, f64, i64)> = sqlx::query_as(
+        "SELECT e.cell_id, e.score, e.robots FROM evaluations e WHERE e.kind = 'rung' AND e.epoch = 1 ORDER BY e.cell_id",
+    )
+    .fetch_all(&db)
+    .await
+    .unwrap();
+    assert_eq!(rung0.len(), 3);
+    assert!(
+        rung0.iter().all(|r| r.2 == 2),
+        "rung evaluations use the spec's robots"
+    );
+    // The best of rung 0 (ties to the lower id) continued, the others stopped.
+    let best = rung0
+        .iter()
+        .fold(None::<(i64, f64)>, |b, r| match b {
+            Some((_, s)) if s >= r.1 => b,
+            _ => Some((r.0, r.1)),
+        })
+        .unwrap()
+        .0;
+    let decisions: Vec<(i64, i64, i64, String)> = sqlx::query_as(
+        "SELECT cell_id, rung, epoch, decision FROM rung_decisions ORDER BY cell_id",
+    )
+    .fetch_all(&db)
+    .await
+    .unwrap();
+    assert_eq!(decisions.len(), 3, "{decisions:?}");
+    for (cell, rung, epoch, d) in &decisions {
+        assert_eq!((*rung, *epoch), (0, 1));
+        assert_eq!(
+            d,
+            if *cell == best { "continue" } else { "stop" },
+            "{decisions:?}"
+        );
+    }
+    // The continued cell resumed from its rung checkpoint, logged a periodic evaluation at
+    // epoch 2 and was scored at the full budget; stopped cells keep their rung epoch.
+    let resumed: Vec<i64> = sqlx::query_scalar(
+        "SELECT resumed_from_epoch FROM attempts WHERE cell_id = ? AND state = 'done' ORDER BY id",
+    )
+    .bind(best)
+    .fetch_all(&db)
+    .await
+    .unwrap();
+    assert_eq!(resumed, vec![0, 1]);
+    let periodic: Vec<i64> =
+        sqlx::query_scalar("SELECT epoch FROM evaluations WHERE kind = 'periodic' AND cell_id = ?")
+            .bind(best)
+            .fetch_all(&db)
+            .await
+            .unwrap();
+    assert_eq!(periodic, vec![2]);
+    let cells: Vec<(i64, String, i64, Option<i64>)> = sqlx::query_as(
+        "SELECT c.id, c.state, c.epochs_done, s.epochs FROM cells c LEFT JOIN scores s ON s.cell_id = c.id ORDER BY c.id",
+    )
+    .fetch_all(&db)
+    .await
+    .unwrap();
+    for (id, state, epochs_done, scored) in &cells {
+        if *id == best {
+            assert_eq!(
+                (state.as_str(), *epochs_done, *scored),
+                ("done", 3, Some(3))
+            );
+        } else {
+            assert_eq!(
+                (state.as_str(), *epochs_done, *scored),
+                ("stopped", 1, None)
+            );
+        }
+    }
+    let promoted: i64 = sqlx::query_scalar(
+        "SELECT cell_id FROM promotions WHERE sweep_id = ? AND terrain = '' ORDER BY id DESC LIMIT 1",
+    )
+    .bind(sweep.sweep_id)
+    .fetch_one(&db)
+    .await
+    .unwrap();
+    assert_eq!(promoted, best);
+    // Five of the grid's nine epochs were trained.
+    let trained: i64 = sqlx::query_scalar("SELECT SUM(epochs_done) FROM cells")
+        .fetch_one(&db)
+        .await
+        .unwrap();
+    assert_eq!(trained, 5);
+
+    let out = std::process::Command::new(bin("coordinator"))
+        .args([
+            "show",
+            "--connect",
+            &coord.url(),
+            &sweep.sweep_id.to_string(),
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains("stopped"),
+        "show output: {text}"
+    );
+}
+
+/// Item 6 of the search issue: a worker killed while a continued cell trains towards its
+/// next rung and a coordinator restarted between two rungs lose nothing and take no
+/// decision twice.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn asha_survives_a_killed_worker_and_a_restarted_coordinator_between_rungs() {
+    let _g = heavy();
+    let tmp = tempfile::tempdir().unwrap();
+    let args = ["--lease-seconds", "2"];
+    let mut coord = Coord::start(tmp.path(), "127.0.0.1:0", &args).await;
+    let addr = coord.addr.clone();
+    let mut c = coord.sweeps().await;
+    let spec = "name = \"asha-faults\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\n\
+                w1 = { values = [2.0, 5.0, 8.0] }\nw2 = { values = [-6.0] }\n\
+                agents_per_cell = 4\nepochs = 40\ncheckpoint_every = 1\nseed = 3\n\
+                eval = { robots = 2, seconds = 1.0 }\n\
+                [search]\nmethod = \"asha\"\nmin_epochs = 10\nreduction = 3\n";
+    let sweep = create(&mut c, spec.to_string()).await;
+    let mut a = start_worker(tmp.path(), &coord.url(), "a");
+    let db = coord.db().await;
+    wait_for("the first rung decisions", SWEEP_TIMEOUT, || {
+        let db = db.clone();
+        async move {
+            let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM rung_decisions")
+                .fetch_one(&db)
+                .await
+                .ok()?;
+            (n >= 3).then_some(())
+        }
+    })
+    .await;
+    a.kill();
+    db.close().await;
+    coord.proc.kill();
+    let coord = Coord::start(tmp.path(), &addr, &args).await;
+    let b = start_worker(tmp.path(), &coord.url(), "b");
+    let done = wait_done(
+        &coord,
+        sweep.sweep_id,
+        SWEEP_TIMEOUT,
+        &[&coord.proc, &a, &b],
+    )
+    .await;
+    assert_eq!(
+        (done.state, done.cells_done, done.cells_stopped),
+        (pb::SweepState::Done as i32, 1, 2)
+    );
+    let db = coord.db().await;
+    // Rung 0 (epoch 10): three decisions; rung 1 (epoch 30): the only cell there goes on.
+    let decisions: Vec<(i64, i64, String)> =
+        sqlx::query_as("SELECT cell_id, rung, decision FROM rung_decisions ORDER BY rung, cell_id")
+            .fetch_all(&db)
+            .await
+            .unwrap();
+    assert_eq!(decisions.len(), 4, "{decisions:?}");
+    assert_eq!(decisions.iter().filter(|d| d.2 == "continue").count(), 2);
+    let best = decisions[3].0;
+    assert_eq!((decisions[3].1, decisions[3].2.as_str()), (1, "continue"));
+    let evals: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM evaluations WHERE kind = 'rung'")
+        .fetch_one(&db)
+        .await
+        .unwrap();
+    assert_eq!(evals, 4, "three at rung 0, one at rung 1");
+    let (epochs, scores): (i64, i64) =
+        sqlx::query_as("SELECT MAX(epochs), COUNT(*) FROM scores WHERE cell_id = ?")
+            .bind(best)
+            .fetch_one(&db)
+            .await
+            .unwrap();
+    assert_eq!((epochs, scores), (40, 1));
+    // The continued cell's epochs were trained once each, across its attempts.
+    let metrics: i64 =
+        sqlx::query_scalar("SELECT COUNT(DISTINCT epoch) FROM epoch_metrics WHERE cell_id = ?")
+            .bind(best)
+            .fetch_one(&db)
+            .await
+            .unwrap();
+    assert_eq!(metrics, 40);
+}
