@@ -22,7 +22,7 @@ cleanup() {
 trap cleanup EXIT
 trap 'echo "interrupted: stopping coordinator and workers" >&2; exit 130' INT TERM
 
-"$BIN/coordinator" serve --listen 127.0.0.1:0 --data-dir "$OUT/data" > "$OUT/coordinator.log" 2>&1 &
+"$BIN/coordinator" serve --listen 127.0.0.1:0 --http 127.0.0.1:0 --data-dir "$OUT/data" > "$OUT/coordinator.log" 2>&1 &
 pids+=($!)
 for _ in $(seq 1 100); do
   [ -s "$OUT/data/coordinator.addr" ] && break
@@ -32,6 +32,11 @@ done
 URL="http://$(cat "$OUT/data/coordinator.addr")"
 export GAITSWEEP_URL="$URL"
 echo "coordinator on $URL, data in $OUT/data"
+for _ in $(seq 1 50); do
+  [ -s "$OUT/data/http.addr" ] && break
+  sleep 0.1
+done
+echo "live page: http://$(cat "$OUT/data/http.addr")/ (open it in a browser to watch the sweep)"
 
 WORKERS="${GAITSWEEP_DEMO_WORKERS:-$(nproc)}"
 for i in $(seq 1 "$WORKERS"); do

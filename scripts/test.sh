@@ -5,5 +5,14 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
+# The live page's end-to-end test renders it in headless Chromium (Debian's package).
+if ! command -v chromium > /dev/null 2>&1; then
+  echo "installing Debian's chromium for the live-page browser test (apt-get install chromium)"
+  if [ "$(id -u)" = 0 ]; then
+    apt-get update -qq && apt-get install -y -qq chromium > /dev/null
+  else
+    sudo apt-get update -qq && sudo apt-get install -y -qq chromium > /dev/null
+  fi
+fi
 cargo build --release --workspace --bins
 cargo test --release --workspace --no-fail-fast "$@"

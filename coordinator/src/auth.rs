@@ -19,6 +19,11 @@ impl TokenCheck {
     }
 }
 
+/// Whether a presented token equals the expected one, compared in constant time.
+pub fn same_token(given: &str, expected: &str) -> bool {
+    same(given.as_bytes(), expected.as_bytes())
+}
+
 /// Compares without an early exit, so timing does not reveal the token.
 fn same(a: &[u8], b: &[u8]) -> bool {
     a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0

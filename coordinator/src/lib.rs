@@ -7,6 +7,7 @@ pub mod auth;
 pub mod blobs;
 pub mod error;
 pub mod leases;
+pub mod live;
 pub mod presets;
 pub mod report;
 pub mod sched;

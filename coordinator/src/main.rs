@@ -57,6 +57,10 @@ struct ServeArgs {
     /// Largest checkpoint upload accepted, MiB.
     #[arg(long, default_value_t = 512)]
     max_checkpoint_mb: u64,
+    /// Also serve the live page (HTTP) on this address; port 0 picks a free port (written
+    /// to DATA_DIR/http.addr). The token, if any, applies to it too.
+    #[arg(long)]
+    http: Option<SocketAddr>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -80,6 +84,7 @@ fn main() -> anyhow::Result<()> {
                     max_attempts: a.max_attempts,
                     lease: Duration::from_secs_f64(a.lease_seconds),
                     max_checkpoint_bytes: a.max_checkpoint_mb << 20,
+                    http: a.http,
                 };
                 let shutdown = async {
                     gaitsweep_core::shutdown_signal().await;

@@ -36,6 +36,8 @@ pub struct ServeConfig {
     pub lease: Duration,
     /// Largest checkpoint accepted, bytes.
     pub max_checkpoint_bytes: u64,
+    /// Address of the live page (HTTP), if it is served.
+    pub http: Option<SocketAddr>,
 }
 
 /// How long open calls (e.g. `watch` streams) may run on after the shutdown signal.
@@ -98,6 +100,29 @@ pub async fn serve(
     println!("listening on {addr}");
 
     let background = tokio::spawn(expiry_loop(coord.clone()));
+    let page = match cfg.http {
+        Some(http) => {
+            let listener = tokio::net::TcpListener::bind(http)
+                .await
+                .map_err(io(format!("listen on {http} for the live page: is the port free?")))?;
+            let addr = listener.local_addr().map_err(io("read the page's bound address"))?;
+            let file = cfg.data_dir.join(crate::live::HTTP_ADDR_FILE);
+            std::fs::write(&file, addr.to_string())
+                .map_err(io(format!("write {}", file.display())))?;
+            tracing::info!(%addr, "live page listening");
+            println!("live page on http://{addr}/");
+            // Server-sent event streams never end by themselves: the task is aborted when
+            // the gRPC server has stopped, instead of a graceful shutdown that would wait.
+            Some(tokio::spawn(crate::live::serve_http(
+                listener,
+                coord.clone(),
+                cfg.data_dir.clone(),
+                cfg.token.clone(),
+                std::future::pending(),
+            )))
+        }
+        None => None,
+    };
     let incoming = tonic::transport::server::TcpIncoming::from(listener).with_nodelay(Some(true));
     // tonic's graceful shutdown waits for every open call, and a `watch` stream never ends
     // by itself: after the signal, open calls get SHUTDOWN_GRACE to finish.
@@ -133,6 +158,9 @@ pub async fn serve(
         }
     };
     background.abort();
+    if let Some(p) = page {
+        p.abort();
+    }
     result.map_err(|e| Error::Server(format!("serving failed: {e}")))
 }
 

@@ -84,6 +84,11 @@ impl SqliteStore {
         Ok(Self { write, read })
     }
 
+    /// The pool of read-only connections (the live page reads through it).
+    pub fn reader(&self) -> &SqlitePool {
+        &self.read
+    }
+
     /// The writer pool, for tests that reach the connection (e.g. to fill the database).
     #[cfg(test)]
     pub(crate) fn writer(&self) -> &SqlitePool {

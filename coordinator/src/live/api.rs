@@ -1,0 +1,345 @@
+//! The live page's JSON and event stream, read from the coordinator's own database (the
+//! store's reader pool) and event bus.
+
+use super::Live;
+use crate::service::now_ms;
+use crate::store::Store;
+use axum::body::Body;
+use axum::extract::{Path, State};
+use axum::http::{header, StatusCode};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Json, Response};
+use futures::stream::Stream;
+use gaitsweep_core::pb::{self, sweep_event::Kind};
+use serde::Serialize;
+use serde_json::{json, Value};
+use sqlx::Row;
+use std::collections::BTreeMap;
+use std::convert::Infallible;
+use std::time::Duration;
+use tokio_stream::wrappers::BroadcastStream;
+use tokio_stream::StreamExt;
+
+/// An error as the page shows it: a status and a lowercase message.
+pub(crate) struct ApiError(StatusCode, String);
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        (self.0, Json(json!({ "error": self.1 }))).into_response()
+    }
+}
+
+impl<E: std::fmt::Display> From<E> for ApiError {
+    fn from(e: E) -> Self {
+        ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string())
+    }
+}
+
+type ApiResult<T> = std::result::Result<T, ApiError>;
+
+/// One sweep in the list, with progress and an ETA from the measured epoch rate.
+#[derive(Serialize)]
+struct SweepSummary {
+    id: i64,
+    name: String,
+    robot: String,
+    state: String,
+    search: &'static str,
+    created_unix_ms: i64,
+    cells: BTreeMap<&'static str, u32>,
+    epochs_done: i64,
+    epochs_total: i64,
+    epochs_per_second: Option<f64>,
+    eta_seconds: Option<f64>,
+}
+
+pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
+    let records = live.coord.store.list_sweeps().await?;
+    let done: BTreeMap<i64, i64> =
+        sqlx::query_as("SELECT sweep_id, SUM(epochs_done) FROM cells GROUP BY sweep_id")
+            .fetch_all(&live.db)
+            .await?
+            .into_iter()
+            .collect();
+    let now = now_ms();
+    let out: Vec<SweepSummary> = records
+        .iter()
+        .map(|s| {
+            let epochs_done = done.get(&s.id.0).copied().unwrap_or(0);
+            let epochs_total = i64::from(s.cells_total) * i64::from(s.spec.epochs);
+            let running = s.state == gaitsweep_core::SweepState::Running;
+            let secs = (now - s.created_unix_ms).max(1) as f64 / 1000.0;
+            let rate = (running && epochs_done > 0).then(|| epochs_done as f64 / secs);
+            let search = match s.spec.search {
+                gaitsweep_core::Search::Grid => "grid",
+                gaitsweep_core::Search::Asha { .. } => "asha",
+            };
+            SweepSummary {
+                id: s.id.0,
+                name: s.spec.name.clone(),
+                robot: s.spec.robot.clone(),
+                state: s.state.as_str().to_string(),
+                search,
+                created_unix_ms: s.created_unix_ms,
+                cells: BTreeMap::from([
+                    ("total", s.cells_total),
+                    ("queued", s.cells_queued),
+                    ("running", s.cells_running),
+                    ("done", s.cells_done),
+                    ("failed", s.cells_failed),
+                    ("paused", s.cells_paused),
+                    ("stopped", s.cells_stopped),
+                ]),
+                epochs_done,
+                epochs_total,
+                epochs_per_second: rate,
+                // Successive halving never trains every epoch: no ETA from the grid's total.
+                eta_seconds: rate
+                    .filter(|_| search == "grid")
+                    .map(|r| (epochs_total - epochs_done).max(0) as f64 / r),
+            }
+        })
+        .collect();
+    Ok(Json(json!({ "sweeps": out })))
+}
+
+pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiResult<Json<Value>> {
+    let data = crate::report::load(&live.db, id)
+        .await
+        .map_err(|e| ApiError(StatusCode::NOT_FOUND, e.to_string()))?;
+    let cells: Vec<Value> = data
+        .cells
+        .iter()
+        .map(|c| {
+            let last = |name: &str| c.curves.get(name).and_then(|v| v.last()).map(|p| p.1);
+            json!({
+                "id": c.id,
+                "terrain_index": c.terrain_index,
+                "w1_index": c.w1_index,
+                "w2_index": c.w2_index,
+                "w1": c.w1,
+                "w2": c.w2,
+                "replicate": c.replicate,
+                "state": c.state,
+                "epochs_done": c.epochs_done,
+                "attempts": c.attempts,
+                "score": c.score.as_ref().map(|s| s.score),
+                "fall_rate": c.score.as_ref().map(|s| s.fall_rate),
+                "mean_vel_error": c.score.as_ref().map(|s| s.mean_vel_error),
+                "mean_return": last("mean_return"),
+                "last_error": c.last_error,
+            })
+        })
+        .collect();
+    // The latest evaluation of each cell (a rung or `eval.every`): what a paused or stopped
+    // cell of a successive-halving sweep is ranked by.
+    let mut latest: BTreeMap<i64, (i64, f64, Option<f64>)> = BTreeMap::new();
+    for (cell, epoch, score, fall) in sqlx::query_as::<_, (i64, i64, f64, Option<f64>)>(
+        "SELECT e.cell_id, e.epoch, e.score, e.fall_rate FROM evaluations e JOIN cells c ON c.id = e.cell_id \
+         WHERE c.sweep_id = ? ORDER BY e.cell_id, e.epoch",
+    )
+    .bind(id)
+    .fetch_all(&live.db)
+    .await?
+    {
+        latest.insert(cell, (epoch, score, fall));
+    }
+    let cells: Vec<Value> = cells
+        .into_iter()
+        .map(|mut c| {
+            let id = c["id"].as_i64().unwrap_or(0);
+            if let Some((epoch, score, fall)) = latest.get(&id) {
+                c["eval_epoch"] = json!(epoch);
+                c["eval_score"] = json!(score);
+                c["eval_fall_rate"] = json!(fall);
+            }
+            c
+        })
+        .collect();
+    let epochs: Option<i64> = sqlx::query_scalar(
+        "SELECT json_extract(spec_json, '$.epochs') FROM sweeps WHERE id = ?",
+    )
+    .bind(id)
+    .fetch_optional(&live.db)
+    .await?
+    .flatten();
+    Ok(Json(json!({
+        "id": data.sweep_id,
+        "name": data.name,
+        "robot": data.robot,
+        "state": data.state,
+        "epochs": epochs,
+        "terrains": data.terrains,
+        "w1_values": data.w1_values,
+        "w2_values": data.w2_values,
+        "promotions": data.promotions.iter().map(|p| json!({
+            "terrain": p.terrain, "cell_id": p.cell_id, "score": p.score,
+        })).collect::<Vec<_>>(),
+        "cells": cells,
+    })))
+}
+
+pub(crate) async fn cell(State(live): State<Live>, Path(id): Path<i64>) -> ApiResult<Json<Value>> {
+    let head = sqlx::query(
+        "SELECT c.id, c.terrain, c.w1, c.w2, c.replicate, c.seed, c.state, c.epochs_done, \
+         COALESCE(s.final_checkpoint_sha256, c.last_checkpoint_sha256) AS sha \
+         FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.id = ?",
+    )
+    .bind(id)
+    .fetch_optional(&live.db)
+    .await?
+    .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("no cell {id}")))?;
+    let mut curves: BTreeMap<String, Vec<(i64, f64)>> = BTreeMap::new();
+    for r in sqlx::query("SELECT epoch, name, value FROM epoch_metrics WHERE cell_id = ? ORDER BY epoch")
+        .bind(id)
+        .fetch_all(&live.db)
+        .await?
+    {
+        let v: f64 = r.try_get("value")?;
+        if v.is_finite() {
+            curves
+                .entry(r.try_get("name")?)
+                .or_default()
+                .push((r.try_get("epoch")?, v));
+        }
+    }
+    let attempts: Vec<Value> = sqlx::query(
+        "SELECT a.id, a.worker_id, w.hostname, a.state, a.resumed_from_epoch, a.started_unix_ms, \
+         a.ended_unix_ms, a.error FROM attempts a LEFT JOIN workers w ON w.id = a.worker_id \
+         WHERE a.cell_id = ? ORDER BY a.id",
+    )
+    .bind(id)
+    .fetch_all(&live.db)
+    .await?
+    .iter()
+    .map(|r| {
+        json!({
+            "id": r.try_get::<i64, _>("id").ok(),
+            "worker": r.try_get::<String, _>("worker_id").ok(),
+            "host": r.try_get::<Option<String>, _>("hostname").ok().flatten(),
+            "state": r.try_get::<String, _>("state").ok(),
+            "resumed_from_epoch": r.try_get::<i64, _>("resumed_from_epoch").ok(),
+            "started_unix_ms": r.try_get::<i64, _>("started_unix_ms").ok(),
+            "ended_unix_ms": r.try_get::<Option<i64>, _>("ended_unix_ms").ok().flatten(),
+            "error": r.try_get::<Option<String>, _>("error").ok().flatten(),
+        })
+    })
+    .collect();
+    let evaluations: Vec<Value> = sqlx::query(
+        "SELECT epoch, kind, score, fall_rate, mean_vel_error FROM evaluations WHERE cell_id = ? ORDER BY epoch",
+    )
+    .bind(id)
+    .fetch_all(&live.db)
+    .await?
+    .iter()
+    .map(|r| {
+        json!({
+            "epoch": r.try_get::<i64, _>("epoch").ok(),
+            "kind": r.try_get::<String, _>("kind").ok(),
+            "score": r.try_get::<f64, _>("score").ok(),
+            "fall_rate": r.try_get::<Option<f64>, _>("fall_rate").ok().flatten(),
+            "mean_vel_error": r.try_get::<Option<f64>, _>("mean_vel_error").ok().flatten(),
+        })
+    })
+    .collect();
+    Ok(Json(json!({
+        "id": head.try_get::<i64, _>("id")?,
+        "terrain": head.try_get::<String, _>("terrain")?,
+        "w1": head.try_get::<f64, _>("w1")?,
+        "w2": head.try_get::<f64, _>("w2")?,
+        "replicate": head.try_get::<i64, _>("replicate")?,
+        "state": head.try_get::<String, _>("state")?,
+        "epochs_done": head.try_get::<i64, _>("epochs_done")?,
+        "checkpoint": head.try_get::<Option<String>, _>("sha")?,
+        "curves": curves,
+        "attempts": attempts,
+        "evaluations": evaluations,
+    })))
+}
+
+pub(crate) async fn workers(State(live): State<Live>) -> ApiResult<Json<Value>> {
+    let mut running: BTreeMap<String, Vec<i64>> = BTreeMap::new();
+    for (w, c) in sqlx::query_as::<_, (String, i64)>(
+        "SELECT worker_id, cell_id FROM attempts WHERE state = 'running' ORDER BY cell_id",
+    )
+    .fetch_all(&live.db)
+    .await?
+    {
+        running.entry(w).or_default().push(c);
+    }
+    let rows = sqlx::query(
+        "SELECT id, hostname, cores, device, slots, last_seen_unix_ms FROM workers ORDER BY last_seen_unix_ms DESC",
+    )
+    .fetch_all(&live.db)
+    .await?;
+    let out: Vec<Value> = rows
+        .iter()
+        .map(|r| {
+            let id: String = r.try_get("id").unwrap_or_default();
+            json!({
+                "id": id,
+                "host": r.try_get::<String, _>("hostname").ok(),
+                "cores": r.try_get::<i64, _>("cores").ok(),
+                "device": r.try_get::<String, _>("device").ok(),
+                "slots": r.try_get::<i64, _>("slots").ok(),
+                "last_seen_unix_ms": r.try_get::<i64, _>("last_seen_unix_ms").ok(),
+                "cells": running.get(&id).cloned().unwrap_or_default(),
+            })
+        })
+        .collect();
+    Ok(Json(json!({ "workers": out, "now_unix_ms": now_ms() })))
+}
+
+/// The event bus as server-sent events: one JSON object per event, `sweep_id` and `kind`
+/// with the cell, epoch or decision it is about. A watcher that falls behind gets a
+/// `lagged` event and reloads.
+pub(crate) async fn events(
+    State(live): State<Live>,
+) -> Sse<impl Stream<Item = Result<Event, Infallible>>> {
+    let rx = live.coord.events.subscribe();
+    let stream = BroadcastStream::new(rx).map(|ev| {
+        let v = match ev {
+            Ok(e) => event_json(&e),
+            Err(_) => json!({ "kind": "lagged" }),
+        };
+        Ok(Event::default().data(v.to_string()))
+    });
+    Sse::new(stream).keep_alive(KeepAlive::new().interval(Duration::from_secs(15)))
+}
+
+fn event_json(e: &pb::SweepEvent) -> Value {
+    let mut v = match &e.kind {
+        Some(Kind::Cell(c)) => json!({ "kind": "cell", "cell_id": c.cell_id, "epochs_done": c.epochs_done }),
+        Some(Kind::Progress(p)) => json!({ "kind": "progress", "cell_id": p.cell_id, "epoch": p.epoch, "mean_return": p.mean_return }),
+        Some(Kind::Promotion(p)) => json!({ "kind": "promotion", "cell_id": p.cell.as_ref().map(|c| c.cell_id), "terrain": p.terrain }),
+        Some(Kind::Finished(_)) => json!({ "kind": "finished" }),
+        Some(Kind::Decision(d)) => json!({ "kind": "decision", "cell_id": d.cell_id, "rung": d.rung, "continued": d.continued }),
+        None => json!({ "kind": "none" }),
+    };
+    v["sweep_id"] = json!(e.sweep_id);
+    v["unix_ms"] = json!(e.unix_ms);
+    v
+}
+
+pub(crate) async fn checkpoint(State(live): State<Live>, Path(sha): Path<String>) -> ApiResult<Response> {
+    if sha.len() != 64 || !sha.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(ApiError(StatusCode::BAD_REQUEST, format!("{sha:?} is not a sha256")));
+    }
+    let path: Option<String> = sqlx::query_scalar("SELECT path FROM checkpoints WHERE sha256 = ?")
+        .bind(&sha)
+        .fetch_optional(&live.db)
+        .await?;
+    let path = path.ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("no checkpoint {sha}")))?;
+    let bytes = tokio::fs::read(live.data_dir.join(&path)).await?;
+    Ok((
+        [
+            (header::CONTENT_TYPE, "application/octet-stream".to_string()),
+            (
+                header::CONTENT_DISPOSITION,
+                format!("attachment; filename=\"{sha}.safetensors\""),
+            ),
+        ],
+        Body::from(bytes),
+    )
+        .into_response())
+}

@@ -1,0 +1,168 @@
+//! The live page in a real browser: a coordinator with a token and `--http`, a real worker
+//! finishing a tiny sweep, headless Chromium (Debian's `chromium`, installed by
+//! scripts/test.sh when missing) rendering the page until a finished cell's score is in
+//! the DOM and a learning curve has points; a screenshot is saved. Without the token the
+//! page is refused.
+
+mod common;
+
+use common::*;
+use std::io::{Read, Write};
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+
+const TOKEN: &str = "live-s3cret";
+
+fn chromium() -> Option<String> {
+    ["chromium", "chromium-browser", "google-chrome"]
+        .into_iter()
+        .find(|b| {
+            Command::new(b)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+        .map(str::to_string)
+}
+
+/// Runs headless Chromium on `url` with `extra` flags; its stdout.
+fn browse(browser: &str, url: &str, extra: &[&str]) -> String {
+    let out = Command::new(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--hide-scrollbars",
+            "--window-size=1400,1000",
+            "--virtual-time-budget=1500",
+        ])
+        .args(extra)
+        .arg(url)
+        .output()
+        .expect("run chromium");
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Status line of a plain GET without any token.
+fn status_of(addr: &str, path: &str) -> String {
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").unwrap();
+    let mut text = String::new();
+    let _ = s.read_to_string(&mut text);
+    text.lines().next().unwrap_or("").to_string()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_live_page_shows_a_finished_sweep_and_refuses_a_missing_token() {
+    let browser = chromium().expect(
+        "headless chromium is needed for this test: scripts/test.sh installs Debian's `chromium` \
+         (apt-get install chromium)",
+    );
+    let _g = heavy();
+    let tmp = tempfile::tempdir().unwrap();
+    let coord = Coord::start(
+        tmp.path(),
+        "127.0.0.1:0",
+        &["--http", "127.0.0.1:0", "--token", TOKEN],
+    )
+    .await;
+    let http = wait_for("the page's address file", Duration::from_secs(30), || {
+        let f = coord.data.join("http.addr");
+        async move { std::fs::read_to_string(f).ok().filter(|s| !s.is_empty()) }
+    })
+    .await;
+
+    // Without the token: refused, every route.
+    assert!(status_of(&http, "/").contains("401"), "{}", status_of(&http, "/"));
+    assert!(status_of(&http, "/api/sweeps").contains("401"));
+    let login = browse(&browser, &format!("http://{http}/"), &["--dump-dom"]);
+    assert!(login.contains("needs its access token"), "{login}");
+    assert!(!login.contains(TOKEN));
+
+    let spec = tmp.path().join("spec.toml");
+    std::fs::write(&spec, tiny_spec(&[2.0, 8.0], &[-6.0], 3)).unwrap();
+    let created = Command::new(bin("coordinator"))
+        .args(["create", "--connect", &coord.url(), "--token", TOKEN])
+        .arg(&spec)
+        .output()
+        .unwrap();
+    assert!(created.status.success(), "{created:?}");
+    let work = tmp.path().join("work-a");
+    let args: Vec<String> = [
+        "--connect",
+        &coord.url(),
+        "--token",
+        TOKEN,
+        "--slots",
+        "1",
+        "--threads",
+        "1",
+        "--work-dir",
+        &work.display().to_string(),
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let w = Proc::spawn("worker", &args, tmp.path().join("worker-a.log"));
+    let db = coord.db().await;
+    let score: f64 = wait_for("the sweep to finish", Duration::from_secs(600), || {
+        let db = db.clone();
+        async move {
+            let state: String = sqlx::query_scalar("SELECT state FROM sweeps")
+                .fetch_one(&db)
+                .await
+                .ok()?;
+            if state != "done" {
+                return None;
+            }
+            sqlx::query_scalar(
+                "SELECT s.score FROM promotions p JOIN scores s ON s.cell_id = p.cell_id \
+                 WHERE p.terrain = '' ORDER BY p.id DESC LIMIT 1",
+            )
+            .fetch_one(&db)
+            .await
+            .ok()
+        }
+    })
+    .await;
+    drop(w);
+
+    // With the token: the promoted cell's score in the grid and in the cell panel, its
+    // learning curves drawn.
+    let url = format!("http://{http}/?token={TOKEN}");
+    let dom = browse(&browser, &url, &["--dump-dom"]);
+    let shown = format!("{score:.4}");
+    assert!(dom.contains("data-loaded=\"1\""), "page did not load: {dom}");
+    assert!(
+        dom.contains(&format!("id=\"cellscore\">{shown}<")),
+        "promoted score {shown} not in the page: {dom}"
+    );
+    let points: Vec<usize> = dom
+        .match_indices("data-points=\"")
+        .filter_map(|(i, m)| {
+            let rest = &dom[i + m.len()..];
+            rest[..rest.find('"')?].parse().ok()
+        })
+        .collect();
+    assert!(
+        points.iter().any(|&n| n >= 3),
+        "no learning curve with points: {points:?}"
+    );
+    assert!(dom.contains("e2e"), "sweep name missing");
+    assert!(!dom.contains(TOKEN), "the token leaked into the page");
+
+    let shot = tmp.path().join("live.png");
+    browse(
+        &browser,
+        &url,
+        &[&format!("--screenshot={}", shot.display())],
+    );
+    let png = std::fs::read(&shot).expect("screenshot written");
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    if let Ok(dir) = std::env::var("GAITSWEEP_SCREENSHOT_DIR") {
+        std::fs::copy(&shot, Path::new(&dir).join("live.png")).unwrap();
+    }
+    assert!(!coord.proc.log_text().contains(TOKEN), "the token was logged");
+}
