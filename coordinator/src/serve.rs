@@ -104,8 +104,12 @@ pub async fn serve(
         Some(http) => {
             let listener = tokio::net::TcpListener::bind(http)
                 .await
-                .map_err(io(format!("listen on {http} for the live page: is the port free?")))?;
-            let addr = listener.local_addr().map_err(io("read the page's bound address"))?;
+                .map_err(io(format!(
+                    "listen on {http} for the live page: is the port free?"
+                )))?;
+            let addr = listener
+                .local_addr()
+                .map_err(io("read the page's bound address"))?;
             let file = cfg.data_dir.join(crate::live::HTTP_ADDR_FILE);
             std::fs::write(&file, addr.to_string())
                 .map_err(io(format!("write {}", file.display())))?;

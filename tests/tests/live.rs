@@ -44,14 +44,32 @@ fn browse(browser: &str, url: &str, extra: &[&str]) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
-/// Status line of a plain GET without any token.
-fn status_of(addr: &str, path: &str) -> String {
+/// A plain GET (with `Authorization: Bearer` when `token` is given): the status line and
+/// the body.
+fn http_get(addr: &str, path: &str, token: Option<&str>) -> (String, Vec<u8>) {
     let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").unwrap();
-    let mut text = String::new();
-    let _ = s.read_to_string(&mut text);
-    text.lines().next().unwrap_or("").to_string()
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    let auth = token.map_or(String::new(), |t| format!("Authorization: Bearer {t}\r\n"));
+    write!(
+        s,
+        "GET {path} HTTP/1.1\r\nHost: {addr}\r\n{auth}Connection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut raw = Vec::new();
+    let _ = s.read_to_end(&mut raw);
+    let split = raw
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .map_or(raw.len(), |i| i + 4);
+    let head = String::from_utf8_lossy(&raw[..split]).into_owned();
+    (
+        head.lines().next().unwrap_or("").to_string(),
+        raw[split..].to_vec(),
+    )
+}
+
+fn status_of(addr: &str, path: &str) -> String {
+    http_get(addr, path, None).0
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -75,7 +93,11 @@ async fn the_live_page_shows_a_finished_sweep_and_refuses_a_missing_token() {
     .await;
 
     // Without the token: refused, every route.
-    assert!(status_of(&http, "/").contains("401"), "{}", status_of(&http, "/"));
+    assert!(
+        status_of(&http, "/").contains("401"),
+        "{}",
+        status_of(&http, "/")
+    );
     assert!(status_of(&http, "/api/sweeps").contains("401"));
     let login = browse(&browser, &format!("http://{http}/"), &["--dump-dom"]);
     assert!(login.contains("needs its access token"), "{login}");
@@ -134,7 +156,10 @@ async fn the_live_page_shows_a_finished_sweep_and_refuses_a_missing_token() {
     let url = format!("http://{http}/?token={TOKEN}");
     let dom = browse(&browser, &url, &["--dump-dom"]);
     let shown = format!("{score:.4}");
-    assert!(dom.contains("data-loaded=\"1\""), "page did not load: {dom}");
+    assert!(
+        dom.contains("data-loaded=\"1\""),
+        "page did not load: {dom}"
+    );
     assert!(
         dom.contains(&format!("id=\"cellscore\">{shown}<")),
         "promoted score {shown} not in the page: {dom}"
@@ -153,6 +178,27 @@ async fn the_live_page_shows_a_finished_sweep_and_refuses_a_missing_token() {
     assert!(dom.contains("e2e"), "sweep name missing");
     assert!(!dom.contains(TOKEN), "the token leaked into the page");
 
+    // The promoted gait and the score surface, drawn as `coordinator report` draws them.
+    assert!(
+        dom.contains("report/gait.gif?"),
+        "no gait animation on the page"
+    );
+    let (status, gif) = http_get(&http, "/api/sweeps/1/report/gait.gif", Some(TOKEN));
+    assert!(status.contains("200"), "{status}");
+    assert!(gif.starts_with(b"GIF8"), "not a GIF");
+    let (status, svg) = http_get(&http, "/api/sweeps/1/report/surface_flat.svg", Some(TOKEN));
+    assert!(
+        status.contains("200") && String::from_utf8_lossy(&svg).contains("<svg"),
+        "{status}"
+    );
+    assert!(http_get(
+        &http,
+        "/api/sweeps/1/report/..%2Fgaitsweep.sqlite",
+        Some(TOKEN)
+    )
+    .0
+    .contains("400"));
+
     let shot = tmp.path().join("live.png");
     browse(
         &browser,
@@ -164,5 +210,8 @@ async fn the_live_page_shows_a_finished_sweep_and_refuses_a_missing_token() {
     if let Ok(dir) = std::env::var("GAITSWEEP_SCREENSHOT_DIR") {
         std::fs::copy(&shot, Path::new(&dir).join("live.png")).unwrap();
     }
-    assert!(!coord.proc.log_text().contains(TOKEN), "the token was logged");
+    assert!(
+        !coord.proc.log_text().contains(TOKEN),
+        "the token was logged"
+    );
 }

@@ -346,6 +346,7 @@ pub fn train_cell_with(
         checkpoint::save(&cfg.out_dir, &runner.ppo, meta)
     };
 
+    let mut last_eval: Option<(u32, GaitScore)> = None;
     while runner.epoch < cfg.epochs {
         if observer.should_stop() {
             let path = save(&runner, &mut meta)?;
@@ -358,10 +359,14 @@ pub fn train_cell_with(
         }
         let stats = runner.run_epoch()?;
         let mut m = epoch_metrics(&stats, t0.elapsed().as_secs_f64());
-        if cfg.eval_every > 0 && runner.epoch % cfg.eval_every == 0 && runner.epoch < cfg.epochs {
+        if cfg.eval_every > 0 && runner.epoch % cfg.eval_every == 0 {
             let te = Instant::now();
             let robots = opts.eval_robots.unwrap_or(cfg.eval_robots);
             let s = eval_policy(&preset, cfg, &runner.ppo, robots)?;
+            if robots == cfg.eval_robots {
+                // The final evaluation is this one when the last epoch lands here.
+                last_eval = Some((runner.epoch, s.clone()));
+            }
             for (k, v) in [
                 ("score", s.score),
                 ("track", s.track),
@@ -392,7 +397,10 @@ pub fn train_cell_with(
         }
     };
 
-    let score = eval_policy(&preset, cfg, &runner.ppo, cfg.eval_robots)?;
+    let score = match last_eval {
+        Some((epoch, s)) if epoch == runner.epoch => s,
+        _ => eval_policy(&preset, cfg, &runner.ppo, cfg.eval_robots)?,
+    };
     let score_path = cfg.out_dir.join("score.json");
     let json = serde_json::to_string_pretty(&score).expect("score serialises");
     std::fs::write(&score_path, json + "\n")

@@ -156,13 +156,12 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
             c
         })
         .collect();
-    let epochs: Option<i64> = sqlx::query_scalar(
-        "SELECT json_extract(spec_json, '$.epochs') FROM sweeps WHERE id = ?",
-    )
-    .bind(id)
-    .fetch_optional(&live.db)
-    .await?
-    .flatten();
+    let epochs: Option<i64> =
+        sqlx::query_scalar("SELECT json_extract(spec_json, '$.epochs') FROM sweeps WHERE id = ?")
+            .bind(id)
+            .fetch_optional(&live.db)
+            .await?
+            .flatten();
     Ok(Json(json!({
         "id": data.sweep_id,
         "name": data.name,
@@ -170,6 +169,7 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
         "state": data.state,
         "epochs": epochs,
         "terrains": data.terrains,
+        "terrain_files": data.terrains.iter().map(|t| crate::report::slug(t)).collect::<Vec<_>>(),
         "w1_values": data.w1_values,
         "w2_values": data.w2_values,
         "promotions": data.promotions.iter().map(|p| json!({
@@ -190,10 +190,11 @@ pub(crate) async fn cell(State(live): State<Live>, Path(id): Path<i64>) -> ApiRe
     .await?
     .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("no cell {id}")))?;
     let mut curves: BTreeMap<String, Vec<(i64, f64)>> = BTreeMap::new();
-    for r in sqlx::query("SELECT epoch, name, value FROM epoch_metrics WHERE cell_id = ? ORDER BY epoch")
-        .bind(id)
-        .fetch_all(&live.db)
-        .await?
+    for r in
+        sqlx::query("SELECT epoch, name, value FROM epoch_metrics WHERE cell_id = ? ORDER BY epoch")
+            .bind(id)
+            .fetch_all(&live.db)
+            .await?
     {
         let v: f64 = r.try_get("value")?;
         if v.is_finite() {
@@ -309,11 +310,19 @@ pub(crate) async fn events(
 
 fn event_json(e: &pb::SweepEvent) -> Value {
     let mut v = match &e.kind {
-        Some(Kind::Cell(c)) => json!({ "kind": "cell", "cell_id": c.cell_id, "epochs_done": c.epochs_done }),
-        Some(Kind::Progress(p)) => json!({ "kind": "progress", "cell_id": p.cell_id, "epoch": p.epoch, "mean_return": p.mean_return }),
-        Some(Kind::Promotion(p)) => json!({ "kind": "promotion", "cell_id": p.cell.as_ref().map(|c| c.cell_id), "terrain": p.terrain }),
+        Some(Kind::Cell(c)) => {
+            json!({ "kind": "cell", "cell_id": c.cell_id, "epochs_done": c.epochs_done })
+        }
+        Some(Kind::Progress(p)) => {
+            json!({ "kind": "progress", "cell_id": p.cell_id, "epoch": p.epoch, "mean_return": p.mean_return })
+        }
+        Some(Kind::Promotion(p)) => {
+            json!({ "kind": "promotion", "cell_id": p.cell.as_ref().map(|c| c.cell_id), "terrain": p.terrain })
+        }
         Some(Kind::Finished(_)) => json!({ "kind": "finished" }),
-        Some(Kind::Decision(d)) => json!({ "kind": "decision", "cell_id": d.cell_id, "rung": d.rung, "continued": d.continued }),
+        Some(Kind::Decision(d)) => {
+            json!({ "kind": "decision", "cell_id": d.cell_id, "rung": d.rung, "continued": d.continued })
+        }
         None => json!({ "kind": "none" }),
     };
     v["sweep_id"] = json!(e.sweep_id);
@@ -321,15 +330,22 @@ fn event_json(e: &pb::SweepEvent) -> Value {
     v
 }
 
-pub(crate) async fn checkpoint(State(live): State<Live>, Path(sha): Path<String>) -> ApiResult<Response> {
+pub(crate) async fn checkpoint(
+    State(live): State<Live>,
+    Path(sha): Path<String>,
+) -> ApiResult<Response> {
     if sha.len() != 64 || !sha.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(ApiError(StatusCode::BAD_REQUEST, format!("{sha:?} is not a sha256")));
+        return Err(ApiError(
+            StatusCode::BAD_REQUEST,
+            format!("{sha:?} is not a sha256"),
+        ));
     }
     let path: Option<String> = sqlx::query_scalar("SELECT path FROM checkpoints WHERE sha256 = ?")
         .bind(&sha)
         .fetch_optional(&live.db)
         .await?;
-    let path = path.ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("no checkpoint {sha}")))?;
+    let path =
+        path.ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("no checkpoint {sha}")))?;
     let bytes = tokio::fs::read(live.data_dir.join(&path)).await?;
     Ok((
         [
@@ -342,4 +358,66 @@ pub(crate) async fn checkpoint(State(live): State<Live>, Path(sha): Path<String>
         Body::from(bytes),
     )
         .into_response())
+}
+
+/// A file of the sweep's report (`gait.gif`, `surface_<terrain>.svg`, ...), drawn by the
+/// same code as `coordinator report` into `DATA_DIR/live-report/<sweep>/` and drawn again
+/// whenever the promoted cell or the number of scored cells changed.
+pub(crate) async fn report_file(
+    State(live): State<Live>,
+    Path((id, file)): Path<(i64, String)>,
+) -> ApiResult<Response> {
+    if file.is_empty()
+        || file.starts_with('.')
+        || !file
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'))
+    {
+        return Err(ApiError(
+            StatusCode::BAD_REQUEST,
+            format!("{file:?} is not a report file name"),
+        ));
+    }
+    let data = crate::report::load(&live.db, id)
+        .await
+        .map_err(|e| ApiError(StatusCode::NOT_FOUND, e.to_string()))?;
+    let scored = data.cells.iter().filter(|c| c.score.is_some()).count();
+    let key = format!("{:?} {scored}", data.promoted().map(|c| c.id));
+    let dir = live.data_dir.join("live-report").join(id.to_string());
+    {
+        // One drawing at a time: the page asks for the GIF and the surface together.
+        let _g = live.drawing.lock().await;
+        let stamp = dir.join(".stamp");
+        if tokio::fs::read_to_string(&stamp).await.ok().as_deref() != Some(key.as_str()) {
+            tokio::fs::create_dir_all(&dir).await?;
+            let args = crate::report::ReportArgs {
+                sweep: id,
+                data_dir: live.data_dir.clone(),
+                out: dir.clone(),
+                worker: None,
+                no_gif: false,
+                gif_seconds: 6.0,
+            };
+            let gif = crate::report::render_gif(&data, &args).await;
+            let out = dir.clone();
+            tokio::task::spawn_blocking(move || crate::report::write_report(&data, &out, &gif))
+                .await?
+                .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, format!("{e:#}")))?;
+            tokio::fs::write(&stamp, &key).await?;
+        }
+    }
+    let bytes = tokio::fs::read(dir.join(&file)).await.map_err(|_| {
+        ApiError(
+            StatusCode::NOT_FOUND,
+            format!("the report of sweep {id} has no {file}"),
+        )
+    })?;
+    let kind = match file.rsplit('.').next() {
+        Some("svg") => "image/svg+xml",
+        Some("gif") => "image/gif",
+        Some("png") => "image/png",
+        Some("html") => "text/html; charset=utf-8",
+        _ => "application/octet-stream",
+    };
+    Ok(([(header::CONTENT_TYPE, kind)], Body::from(bytes)).into_response())
 }

@@ -3,7 +3,9 @@
 //! as server-sent events from the same event bus `coordinator watch` streams.
 //!
 //! Routes: `/` (the page), `/api/sweeps`, `/api/sweeps/{id}`, `/api/cells/{id}`,
-//! `/api/workers`, `/api/events` (SSE) and `/checkpoints/{sha256}` (download). With a token
+//! `/api/workers`, `/api/events` (SSE), `/api/sweeps/{id}/report/{file}` (the promoted
+//! gait's GIF and the score surface, drawn as `coordinator report` draws them) and
+//! `/checkpoints/{sha256}` (download). With a token
 //! every route needs it: `?token=` once (exchanged for an HttpOnly cookie and a redirect
 //! that drops it from the address bar), the cookie, or `Authorization: Bearer`.
 
@@ -35,6 +37,8 @@ pub(crate) struct Live {
     pub(crate) coord: Arc<Coordinator<SqliteStore>>,
     pub(crate) db: sqlx::SqlitePool,
     pub(crate) data_dir: PathBuf,
+    /// Held while the report's pictures are drawn.
+    pub(crate) drawing: Arc<tokio::sync::Mutex<()>>,
     token: Option<Arc<str>>,
 }
 
@@ -50,6 +54,7 @@ pub async fn serve_http(
         db: coord.store.reader().clone(),
         coord,
         data_dir,
+        drawing: Arc::default(),
         token: token.map(Arc::from),
     };
     let app = Router::new()
@@ -59,6 +64,7 @@ pub async fn serve_http(
         .route("/api/cells/{id}", get(api::cell))
         .route("/api/workers", get(api::workers))
         .route("/api/events", get(api::events))
+        .route("/api/sweeps/{id}/report/{file}", get(api::report_file))
         .route("/checkpoints/{sha}", get(api::checkpoint))
         .layer(middleware::from_fn_with_state(live.clone(), auth))
         .with_state(live);
@@ -69,10 +75,7 @@ pub async fn serve_http(
 }
 
 async fn page() -> impl IntoResponse {
-    (
-        [(header::CACHE_CONTROL, "no-store")],
-        Html(PAGE),
-    )
+    ([(header::CACHE_CONTROL, "no-store")], Html(PAGE))
 }
 
 /// The token from `?token=`, the cookie or a bearer header.

@@ -478,7 +478,7 @@ pub fn sibling_worker() -> Option<PathBuf> {
 }
 
 /// Renders the promoted cell's checkpoint with `worker render`; never fails the report.
-async fn render_gif(data: &ReportData, a: &ReportArgs) -> GifStatus {
+pub(crate) async fn render_gif(data: &ReportData, a: &ReportArgs) -> GifStatus {
     let Some(best) = data.promoted() else {
         return GifStatus::NotMade(
             "no cell has a score yet, so there is no promoted policy to render".into(),
