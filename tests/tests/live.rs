@@ -103,6 +103,14 @@ async fn the_live_page_shows_a_finished_sweep_and_refuses_a_missing_token() {
     assert!(login.contains("needs its access token"), "{login}");
     assert!(!login.contains(TOKEN));
 
+    // The event stream the page listens to: opened before the sweep, read after it.
+    let mut events = std::net::TcpStream::connect(&http).unwrap();
+    write!(
+        events,
+        "GET /api/events HTTP/1.1\r\nHost: {http}\r\nAuthorization: Bearer {TOKEN}\r\n\r\n"
+    )
+    .unwrap();
+
     let spec = tmp.path().join("spec.toml");
     std::fs::write(&spec, tiny_spec(&[2.0, 8.0], &[-6.0], 3)).unwrap();
     let created = Command::new(bin("coordinator"))
@@ -150,6 +158,30 @@ async fn the_live_page_shows_a_finished_sweep_and_refuses_a_missing_token() {
     })
     .await;
     drop(w);
+    events
+        .set_read_timeout(Some(Duration::from_secs(2)))
+        .unwrap();
+    let mut streamed = Vec::new();
+    let mut buf = [0u8; 65536];
+    while let Ok(n) = events.read(&mut buf) {
+        if n == 0 {
+            break;
+        }
+        streamed.extend_from_slice(&buf[..n]);
+    }
+    let streamed = String::from_utf8_lossy(&streamed);
+    assert!(streamed.contains("text/event-stream"), "{streamed}");
+    for kind in [
+        "\"kind\":\"cell\"",
+        "\"kind\":\"progress\"",
+        "\"kind\":\"promotion\"",
+        "\"kind\":\"finished\"",
+    ] {
+        assert!(
+            streamed.contains(kind),
+            "no {kind} event pushed: {streamed}"
+        );
+    }
 
     // With the token: the promoted cell's score in the grid and in the cell panel, its
     // learning curves drawn.
