@@ -208,14 +208,9 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
                             cell.score.map_or(f64::NAN, |s| s.score)
                         );
                     }
-                    Some(Kind::Decision(d)) => println!(
-                        "cell {} {} at rung {} (epoch {}, score {:.4})",
-                        d.cell_id,
-                        if d.continued { "continues" } else { "stopped" },
-                        d.rung,
-                        d.epoch,
-                        d.score
-                    ),
+                    Some(Kind::Decision(d)) => {
+                        println!("{}", gaitsweep_coordinator::watch::decision_line(&d))
+                    }
                     Some(Kind::Finished(s)) => {
                         println!("sweep {} {}", s.sweep_id, sweep_state(s.state));
                         break;

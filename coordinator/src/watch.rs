@@ -186,14 +186,7 @@ impl WatchBars {
                 ));
             }
             Some(Kind::Decision(d)) => {
-                let _ = self.multi.println(format!(
-                    "cell {} {} at rung {} (epoch {}, score {:.4})",
-                    d.cell_id,
-                    if d.continued { "continues" } else { "stopped" },
-                    d.rung,
-                    d.epoch,
-                    d.score
-                ));
+                let _ = self.multi.println(decision_line(d));
             }
             Some(Kind::Finished(s)) => {
                 self.sweep.finish();
@@ -219,6 +212,18 @@ impl WatchBars {
     pub fn running(&self) -> usize {
         self.cells.len()
     }
+}
+
+/// One line for a successive-halving decision (`watch` on a terminal and off it).
+pub fn decision_line(d: &pb::RungDecision) -> String {
+    format!(
+        "cell {} {} at rung {} (epoch {}, score {:.4})",
+        d.cell_id,
+        if d.continued { "continues" } else { "stopped" },
+        d.rung,
+        d.epoch,
+        d.score
+    )
 }
 
 #[cfg(test)]

@@ -74,6 +74,19 @@ pub struct ResultOutcome {
     pub finished: Option<SweepRecord>,
 }
 
+impl ResultOutcome {
+    /// The answer to a retried report: nothing written, nothing changed.
+    pub fn duplicate(cell: CellRecord) -> Self {
+        ResultOutcome {
+            duplicate: true,
+            cell,
+            promotions: vec![],
+            decisions: vec![],
+            finished: None,
+        }
+    }
+}
+
 /// What ending an attempt changed.
 #[derive(Debug, Clone)]
 pub struct AttemptOutcome {

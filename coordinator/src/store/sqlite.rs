@@ -669,15 +669,13 @@ impl Store for SqliteStore {
                 .bind(lease.0)
                 .fetch_optional(&mut *tx)
                 .await?;
-        if rung_seen.is_some() {
-            let cell = cell_tx(&mut tx, cell_id).await?;
-            return Ok(ResultOutcome {
-                duplicate: true,
-                cell,
-                promotions: vec![],
-                decisions: vec![],
-                finished: None,
-            });
+        let scored: Option<i64> = sqlx::query_scalar("SELECT 1 FROM scores WHERE cell_id = ?")
+            .bind(cell_id.0)
+            .fetch_optional(&mut *tx)
+            .await?;
+        if rung_seen.is_some() || (target == total && scored.is_some()) {
+            // A retried report: answered, nothing written.
+            return Ok(ResultOutcome::duplicate(cell_tx(&mut tx, cell_id).await?));
         }
         if target < total {
             let out = rung_result(
@@ -694,20 +692,6 @@ impl Store for SqliteStore {
             .await?;
             tx.commit().await?;
             return Ok(out);
-        }
-        let scored: Option<i64> = sqlx::query_scalar("SELECT 1 FROM scores WHERE cell_id = ?")
-            .bind(cell_id.0)
-            .fetch_optional(&mut *tx)
-            .await?;
-        if scored.is_some() {
-            let cell = cell_tx(&mut tx, cell_id).await?;
-            return Ok(ResultOutcome {
-                duplicate: true,
-                cell,
-                promotions: vec![],
-                decisions: vec![],
-                finished: None,
-            });
         }
         refuse_closed(cell_id, state)?;
         validate::result_epochs(target, epochs)?;
