@@ -12,7 +12,7 @@ SPEC="${1:-scripts/demo-sweep.toml}"
 OUT="${GAITSWEEP_DEMO_OUT:-$PWD/demo-output}"
 rm -rf "$OUT"
 mkdir -p "$OUT/data"
-BIN="$PWD/target/release"
+BIN="${CARGO_TARGET_DIR:-$PWD/target}/release"
 pids=()
 cleanup() {
   trap - EXIT INT TERM

@@ -3,7 +3,9 @@
 //! ends an attempt.
 
 use super::rows::spec_of;
-use super::sqlite::{cell_tx, checkpoint_of, finish_if_done, refuse_closed, Tx};
+use super::sqlite::{
+    cell_tx, end_winning_attempt, finish_if_done, refuse_closed, require_uploaded, Tx,
+};
 use super::ResultOutcome;
 use crate::{asha, Error, Result};
 use gaitsweep_core::records::RungDecisionRecord;
@@ -18,6 +20,7 @@ pub(super) async fn rung_result(
     tx: &mut Tx,
     lease: LeaseId,
     cell_id: CellId,
+    sweep: SweepId,
     state: CellState,
     target: u32,
     score: &GaitScore,
@@ -31,16 +34,7 @@ pub(super) async fn rung_result(
             "result at epoch {epochs} does not match the cell's rung at epoch {target}: the lease is stale, drop the result"
         )));
     }
-    if let Some(sha) = final_sha256 {
-        if checkpoint_of(tx, Some(sha.to_string()), Some(epochs as i64))
-            .await?
-            .is_none()
-        {
-            return Err(Error::BadRequest(format!(
-                "rung checkpoint {sha} was not uploaded: upload it before reporting the result"
-            )));
-        }
-    }
+    require_uploaded(tx, final_sha256, epochs, "rung").await?;
     sqlx::query(
         "INSERT INTO evaluations (cell_id, epoch, kind, attempt_id, score, track, effort, tilt, progress, \
          fall_rate, mean_vel_error, robots, reported_unix_ms) VALUES (?, ?, 'rung', ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) \
@@ -63,18 +57,13 @@ pub(super) async fn rung_result(
     .bind(now_ms)
     .execute(&mut **tx)
     .await?;
-    sqlx::query("UPDATE attempts SET state = 'done', ended_unix_ms = ? WHERE id = ?")
-        .bind(now_ms)
-        .bind(lease.0)
-        .execute(&mut **tx)
-        .await?;
-    sqlx::query(
-        "UPDATE attempts SET state = 'cancelled', ended_unix_ms = ?, error = 'rung reached by another attempt' \
-         WHERE cell_id = ? AND state = 'running'",
+    end_winning_attempt(
+        tx,
+        lease,
+        cell_id,
+        now_ms,
+        "rung reached by another attempt",
     )
-    .bind(now_ms)
-    .bind(cell_id.0)
-    .execute(&mut **tx)
     .await?;
     sqlx::query(
         "UPDATE cells SET state = 'paused', epochs_done = MAX(epochs_done, ?) WHERE id = ?",
@@ -83,7 +72,6 @@ pub(super) async fn rung_result(
     .bind(cell_id.0)
     .execute(&mut **tx)
     .await?;
-    let sweep = cell_tx(tx, cell_id).await?.sweep_id;
     let decisions = apply_asha(tx, sweep, now_ms).await?;
     let cell = cell_tx(tx, cell_id).await?;
     let finished = finish_if_done(tx, sweep, now_ms).await?;

@@ -228,6 +228,51 @@ pub(super) async fn checkpoint_of(
     }))
 }
 
+/// Refuses a result whose checkpoint (`what`: final or rung) was named but not uploaded.
+pub(super) async fn require_uploaded(
+    tx: &mut Tx,
+    sha: Option<&str>,
+    epochs: u32,
+    what: &str,
+) -> Result<()> {
+    if let Some(sha) = sha {
+        if checkpoint_of(tx, Some(sha.to_string()), Some(epochs as i64))
+            .await?
+            .is_none()
+        {
+            return Err(Error::BadRequest(format!(
+                "{what} checkpoint {sha} was not uploaded: upload it before reporting the result"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Marks the attempt that delivered a result done and cancels the cell's other running
+/// attempts with `why`.
+pub(super) async fn end_winning_attempt(
+    tx: &mut Tx,
+    lease: LeaseId,
+    cell: CellId,
+    now_ms: i64,
+    why: &str,
+) -> Result<()> {
+    sqlx::query("UPDATE attempts SET state = 'done', ended_unix_ms = ? WHERE id = ?")
+        .bind(now_ms)
+        .bind(lease.0)
+        .execute(&mut **tx)
+        .await?;
+    sqlx::query(
+        "UPDATE attempts SET state = 'cancelled', ended_unix_ms = ?, error = ? WHERE cell_id = ? AND state = 'running'",
+    )
+    .bind(now_ms)
+    .bind(why)
+    .bind(cell.0)
+    .execute(&mut **tx)
+    .await?;
+    Ok(())
+}
+
 /// Promotes the grid point of `cell` once all its replicates are closed: ranked by the mean
 /// of their scores, represented by its best replicate (whose checkpoint is the model). With
 /// one replicate this is the cell and its score.
@@ -682,6 +727,7 @@ impl Store for SqliteStore {
                 &mut tx,
                 lease,
                 cell_id,
+                sweep,
                 state,
                 target,
                 score,
@@ -695,14 +741,7 @@ impl Store for SqliteStore {
         }
         refuse_closed(cell_id, state)?;
         validate::result_epochs(target, epochs)?;
-        if let Some(sha) = final_sha256 {
-            let ck = checkpoint_of(&mut tx, Some(sha.to_string()), Some(epochs as i64)).await?;
-            if ck.is_none() {
-                return Err(Error::BadRequest(format!(
-                    "final checkpoint {sha} was not uploaded: upload it before reporting the result"
-                )));
-            }
-        }
+        require_uploaded(&mut tx, final_sha256, epochs, "final").await?;
         sqlx::query(
             "INSERT INTO scores (cell_id, attempt_id, score, track, effort, tilt, progress, fall_rate, mean_vel_error, \
              mean_abs_torque, cost_of_transport, robots, epochs, final_checkpoint_sha256, reported_unix_ms) \
@@ -725,18 +764,13 @@ impl Store for SqliteStore {
         .bind(now_ms)
         .execute(&mut *tx)
         .await?;
-        sqlx::query("UPDATE attempts SET state = 'done', ended_unix_ms = ? WHERE id = ?")
-            .bind(now_ms)
-            .bind(lease.0)
-            .execute(&mut *tx)
-            .await?;
-        sqlx::query(
-            "UPDATE attempts SET state = 'cancelled', ended_unix_ms = ?, error = 'cell finished by another attempt' \
-             WHERE cell_id = ? AND state = 'running'",
+        end_winning_attempt(
+            &mut tx,
+            lease,
+            cell_id,
+            now_ms,
+            "cell finished by another attempt",
         )
-        .bind(now_ms)
-        .bind(cell_id.0)
-        .execute(&mut *tx)
         .await?;
         sqlx::query(
             "UPDATE cells SET state = 'done', epochs_done = MAX(epochs_done, ?) WHERE id = ?",
