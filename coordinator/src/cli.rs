@@ -370,7 +370,15 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         .iter()
         .find(|c| c.cell_id == s.best_cell_id)
         .map(|b| (b.terrain_index, b.w1_index, b.w2_index));
-    for (ti, terrain) in spec.terrains.iter().enumerate() {
+    if spec.search_method == "cmaes" {
+        render_candidates(&mut o, cells, replicates, best_point);
+    }
+    for (ti, terrain) in spec
+        .terrains
+        .iter()
+        .enumerate()
+        .filter(|_| spec.search_method != "cmaes")
+    {
         let point = |i: usize, j: usize| -> Vec<&pb::Cell> {
             cells
                 .iter()
@@ -461,6 +469,53 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         }
     }
     o
+}
+
+/// An evolutionary search's candidates, generation by generation: (w1, w2), the score
+/// (mean ± 95% CI over replicates) / fall rate or the state; `*` marks the promoted one.
+fn render_candidates(
+    o: &mut String,
+    cells: &[pb::Cell],
+    replicates: u32,
+    best: Option<(u32, u32, u32)>,
+) {
+    use std::fmt::Write;
+    let mut points: Vec<(u32, u32)> = cells.iter().map(|c| (c.w1_index, c.w2_index)).collect();
+    points.sort_unstable();
+    points.dedup();
+    let _ = writeln!(
+        o,
+        "\nevolutionary search (cma-es): {} candidates in {} generations; score{} / fall rate of its evaluation",
+        points.len(),
+        points.last().map_or(0, |p| p.0 + 1),
+        if replicates > 1 { " (mean ± 95% CI)" } else { "" }
+    );
+    let _ = writeln!(
+        o,
+        "{:>10} {:>9} {:>9} {:>9} {:>22}",
+        "generation", "candidate", "w1", "w2", "score / falls"
+    );
+    for (g, k) in points {
+        let here: Vec<&pb::Cell> = cells
+            .iter()
+            .filter(|c| (c.w1_index, c.w2_index) == (g, k))
+            .collect();
+        let mark = if best.is_some_and(|b| (b.1, b.2) == (g, k)) {
+            "*"
+        } else {
+            " "
+        };
+        let text = match (point_summary(&here), here.first()) {
+            (Some((st, fall)), _) if replicates > 1 => {
+                format!("{:.3}±{:.3}/{:>3.0}%{mark}", st.mean, st.ci95, 100.0 * fall)
+            }
+            (Some((st, fall)), _) => format!("{:.4}/{:>3.0}%{mark}", st.mean, 100.0 * fall),
+            (None, Some(c)) => format!("{} ", cell_state(c.state)),
+            (None, None) => "- ".into(),
+        };
+        let (w1, w2) = here.first().map_or((f64::NAN, f64::NAN), |c| (c.w1, c.w2));
+        let _ = writeln!(o, "{g:>10} {k:>9} {w1:>9.3} {w2:>9.3} {text:>22}");
+    }
 }
 
 #[cfg(test)]

@@ -6,6 +6,7 @@ pub mod asha;
 pub mod auth;
 pub mod blobs;
 pub mod error;
+pub mod evolution;
 pub mod leases;
 pub mod live;
 pub mod presets;

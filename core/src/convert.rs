@@ -59,11 +59,17 @@ impl From<pb::SweepSpec> for SweepSpec {
             },
             search: (!s.search_method.is_empty()
                 || s.search_min_epochs != 0
-                || s.search_reduction != 0)
+                || s.search_reduction != 0
+                || s.search_population != 0
+                || s.search_sigma != 0.0
+                || s.search_budget_epochs != 0)
                 .then(|| SearchSpec {
                     method: s.search_method,
                     min_epochs: nonzero(s.search_min_epochs),
                     reduction: nonzero(s.search_reduction),
+                    population: nonzero(s.search_population),
+                    sigma: (s.search_sigma != 0.0).then_some(s.search_sigma),
+                    budget_epochs: (s.search_budget_epochs != 0).then_some(s.search_budget_epochs),
                 }),
         }
     }
@@ -101,14 +107,36 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
             search_method: match s.search {
                 Search::Grid => "grid".into(),
                 Search::Asha { .. } => "asha".into(),
+                Search::Cmaes { .. } => "cmaes".into(),
             },
             search_min_epochs: match s.search {
                 Search::Asha { min_epochs, .. } => min_epochs,
-                Search::Grid => 0,
+                _ => 0,
             },
             search_reduction: match s.search {
                 Search::Asha { reduction, .. } => reduction,
-                Search::Grid => 0,
+                _ => 0,
+            },
+            search_population: match s.search {
+                Search::Cmaes { population, .. } => population,
+                _ => 0,
+            },
+            search_sigma: match s.search {
+                Search::Cmaes { sigma, .. } => sigma,
+                _ => 0.0,
+            },
+            search_budget_epochs: match s.search {
+                Search::Cmaes {
+                    population,
+                    generations,
+                    ..
+                } => {
+                    u64::from(generations)
+                        * u64::from(population)
+                        * u64::from(s.replicates.max(1))
+                        * u64::from(s.epochs)
+                }
+                _ => 0,
             },
         }
     }

@@ -72,10 +72,21 @@ pub struct SearchSpec {
     /// ASHA: the reduction factor eta; a rung continues the top 1/eta (default 3).
     #[serde(default)]
     pub reduction: Option<u32>,
+    /// CMA-ES: candidates per generation (default [`DEFAULT_POPULATION`]).
+    #[serde(default)]
+    pub population: Option<u32>,
+    /// CMA-ES: initial step size as a fraction of each axis' range (default
+    /// [`DEFAULT_SIGMA`]).
+    #[serde(default)]
+    pub sigma: Option<f64>,
+    /// CMA-ES: training epochs over all candidates and replicates (default: a third of the
+    /// epochs the full grid would train).
+    #[serde(default)]
+    pub budget_epochs: Option<u64>,
 }
 
 /// How a sweep spends its epochs, resolved.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "method", rename_all = "lowercase")]
 pub enum Search {
     /// Every cell trains all its epochs.
@@ -90,7 +101,24 @@ pub enum Search {
         /// Reduction factor eta (>= 2).
         reduction: u32,
     },
+    /// CMA-ES over continuous (w1, w2) inside the ranges of the spec's axes (one terrain):
+    /// each generation's candidates are cells (`w1_index` = generation, `w2_index` =
+    /// candidate), trained to `epochs` with the spec's replicates; the next generation is
+    /// asked for once every cell of the last one has ended.
+    Cmaes {
+        /// Candidates per generation (lambda, >= 2).
+        population: u32,
+        /// Initial step size as a fraction of each axis' range.
+        sigma: f64,
+        /// Generations the epoch budget pays for.
+        generations: u32,
+    },
 }
+
+/// Default CMA-ES population in two dimensions (4 + floor(3 ln 2), Hansen 2016).
+pub const DEFAULT_POPULATION: u32 = 6;
+/// Default CMA-ES initial step size, as a fraction of each axis' range.
+pub const DEFAULT_SIGMA: f64 = 0.3;
 
 /// Default ASHA reduction factor (Li et al. 2020 use 3 or 4).
 pub const DEFAULT_REDUCTION: u32 = 3;
@@ -365,22 +393,46 @@ impl SweepSpec {
                 problems.push(format!("ppo.{k} is not a finite number"));
             }
         }
-        let search = self.resolve_search(epochs, &mut problems);
-        if !matches!(search, Search::Grid) && self.seeds.unwrap_or(1) > 1 {
+        let replicates = self.seeds.unwrap_or(1);
+        let grid_epochs = (terrains.len().max(1) * w1_values.len() * w2_values.len()) as u64
+            * u64::from(replicates.max(1))
+            * u64::from(epochs);
+        let search = self.resolve_search(epochs, replicates.max(1), grid_epochs, &mut problems);
+        if let Search::Cmaes { .. } = search {
+            if terrains.len() > 1 {
+                problems.push(format!(
+                    "search.method cmaes searches one terrain, the spec has {}: create one sweep per terrain",
+                    terrains.len()
+                ));
+            }
+            let span = |v: &[f64]| {
+                let (lo, hi) = min_max(v);
+                hi > lo
+            };
+            if !span(&w1_values) || !span(&w2_values) {
+                problems.push(
+                    "search.method cmaes searches between each axis' smallest and largest value: give w1 and w2 a range (min < max)".into(),
+                );
+            }
+        }
+        if matches!(search, Search::Asha { .. }) && self.seeds.unwrap_or(1) > 1 {
             problems.push(
                 "search.method asha ranks single training runs: use seeds = 1 with it".into(),
             );
         }
-        let replicates = self.seeds.unwrap_or(1);
         if replicates == 0 || replicates > MAX_REPLICATES {
             problems.push(format!(
                 "seeds is {replicates}: use 1 to {MAX_REPLICATES} replicates per grid point"
             ));
         }
-        let cells = terrains.len().max(1)
-            * w1_values.len()
-            * w2_values.len()
-            * replicates.clamp(1, MAX_REPLICATES) as usize;
+        let cells = match search {
+            Search::Cmaes {
+                population,
+                generations,
+                ..
+            } => population as usize * generations as usize,
+            _ => terrains.len().max(1) * w1_values.len() * w2_values.len(),
+        } * replicates.clamp(1, MAX_REPLICATES) as usize;
         if cells > MAX_CELLS {
             problems.push(format!(
                 "the grid has {cells} cells, more than the limit of {MAX_CELLS}"
@@ -415,18 +467,59 @@ impl SweepSpec {
         })
     }
 
-    fn resolve_search(&self, epochs: u32, problems: &mut Vec<String>) -> Search {
+    fn resolve_search(
+        &self,
+        epochs: u32,
+        replicates: u32,
+        grid_epochs: u64,
+        problems: &mut Vec<String>,
+    ) -> Search {
         let Some(s) = &self.search else {
             return Search::Grid;
         };
-        match s.method.trim() {
-            "" | "grid" => {
-                if s.min_epochs.is_some() || s.reduction.is_some() {
-                    problems.push(
-                        "search.min_epochs and search.reduction belong to method = \"asha\"".into(),
-                    );
+        let method = s.method.trim();
+        if method != "asha" && (s.min_epochs.is_some() || s.reduction.is_some()) {
+            problems.push(
+                "search.min_epochs and search.reduction belong to method = \"asha\"".into(),
+            );
+        }
+        if method != "cmaes"
+            && (s.population.is_some() || s.sigma.is_some() || s.budget_epochs.is_some())
+        {
+            problems.push(
+                "search.population, search.sigma and search.budget_epochs belong to method = \"cmaes\""
+                    .into(),
+            );
+        }
+        match method {
+            "" | "grid" => Search::Grid,
+            "cmaes" => {
+                let population = s.population.unwrap_or(DEFAULT_POPULATION);
+                if !(2..=1000).contains(&population) {
+                    problems.push(format!(
+                        "search.population is {population}: use 2 to 1000 candidates per generation"
+                    ));
                 }
-                Search::Grid
+                let sigma = s.sigma.unwrap_or(DEFAULT_SIGMA);
+                if !(sigma.is_finite() && sigma > 0.0 && sigma <= 1.0) {
+                    problems.push(format!(
+                        "search.sigma is {sigma}: use a step size above 0 and at most 1 (a fraction of each axis' range)"
+                    ));
+                }
+                let per_generation =
+                    u64::from(population.max(1)) * u64::from(replicates) * u64::from(epochs);
+                let budget = s.budget_epochs.unwrap_or(grid_epochs / 3);
+                let generations = budget / per_generation.max(1);
+                if epochs > 0 && generations == 0 {
+                    problems.push(format!(
+                        "search.budget_epochs is {budget}: one generation of {population} candidates x {replicates} replicates x {epochs} epochs needs {per_generation}"
+                    ));
+                }
+                Search::Cmaes {
+                    population,
+                    sigma,
+                    generations: generations.min(u64::from(u32::MAX)) as u32,
+                }
             }
             "asha" => {
                 let reduction = s.reduction.unwrap_or(DEFAULT_REDUCTION);
@@ -451,7 +544,7 @@ impl SweepSpec {
             }
             other => {
                 problems.push(format!(
-                    "search.method {other:?} is unknown: use \"grid\" or \"asha\""
+                    "search.method {other:?} is unknown: use \"grid\", \"asha\" or \"cmaes\""
                 ));
                 Search::Grid
             }
@@ -523,6 +616,37 @@ impl ResolvedSpec {
         out
     }
 
+    /// The (w1, w2) rectangle an evolutionary search proposes from: each axis' smallest
+    /// and largest value, as `([w1_lo, w2_lo], [w1_hi, w2_hi])`.
+    pub fn bounds(&self) -> ([f64; 2], [f64; 2]) {
+        let (a, b) = (min_max(&self.w1_values), min_max(&self.w2_values));
+        ([a.0, b.0], [a.1, b.1])
+    }
+
+    /// The cells of one generation of an evolutionary search: candidate `k` at `(w1, w2)`
+    /// becomes `w1_index = generation`, `w2_index = k`, on the first terrain, once per
+    /// replicate, each with its own seed.
+    pub fn candidate_cells(&self, generation: u32, candidates: &[[f64; 2]]) -> Vec<CellPlan> {
+        let terrain = self.terrains.first().copied().unwrap_or(TerrainKind::Flat);
+        let mut out = Vec::with_capacity(candidates.len() * self.replicates.max(1) as usize);
+        for (k, c) in candidates.iter().enumerate() {
+            for r in 0..self.replicates.max(1) {
+                let n = (u64::from(generation) << 32) | ((k as u64) << 12) | u64::from(r);
+                out.push(CellPlan {
+                    terrain_index: 0,
+                    terrain,
+                    w1_index: generation as usize,
+                    w2_index: k,
+                    w1: c[0],
+                    w2: c[1],
+                    replicate: r,
+                    seed: splitmix64(self.seed.wrapping_add(n)),
+                });
+            }
+        }
+        out
+    }
+
     /// Number of grid points (terrains x w1 x w2).
     pub fn point_count(&self) -> usize {
         self.terrains.len() * self.w1_values.len() * self.w2_values.len()
@@ -562,6 +686,12 @@ fn one() -> u32 {
 pub const MAX_REPLICATES: u32 = 32;
 
 /// A well-mixed 64-bit hash, so neighbouring cells get unrelated seeds.
+/// Smallest and largest of `v` (NaN-free values; (inf, -inf) when empty).
+fn min_max(v: &[f64]) -> (f64, f64) {
+    v.iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| (lo.min(x), hi.max(x)))
+}
+
 fn splitmix64(x: u64) -> u64 {
     let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -655,6 +785,66 @@ mod tests {
             .contains("search.min_epochs is 3000"));
         assert!(err("seeds = 2\n[search]\nmethod = \"asha\"\n").contains("use seeds = 1"));
         assert!(err("[search]\nmethod = \"grid\"\nreduction = 3\n").contains("belong to method"));
+    }
+
+    #[test]
+    fn cmaes_searches_inside_the_axes_with_a_budget_of_generations() {
+        // The preset's Table-1 grid: 4 x 7 cells x 3000 epochs = 84,000 epochs.
+        let base = "robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\n";
+        let parse = |extra: &str| {
+            SweepSpec::from_toml(&format!("{base}{extra}"))
+                .unwrap()
+                .resolve_with(ok)
+        };
+        let d = parse("[search]\nmethod = \"cmaes\"\n").unwrap();
+        // Default budget: a third of the grid's epochs, 28,000 = 1.5 generations of 6 x 3000.
+        assert_eq!(
+            d.search,
+            Search::Cmaes {
+                population: DEFAULT_POPULATION,
+                sigma: DEFAULT_SIGMA,
+                generations: 1
+            }
+        );
+        let r = parse("seeds = 2\n[search]\nmethod = \"cmaes\"\npopulation = 4\nsigma = 0.2\nbudget_epochs = 72000\n")
+            .unwrap();
+        assert_eq!(
+            r.search,
+            Search::Cmaes {
+                population: 4,
+                sigma: 0.2,
+                generations: 3
+            }
+        );
+        let (lo, hi) = r.bounds();
+        assert_eq!((lo[0], hi[0]), (2.0, 12.0));
+        let cells = r.candidate_cells(2, &[[3.0, -5.0], [4.0, -6.0]]);
+        assert_eq!(cells.len(), 4, "two candidates x two replicates");
+        assert_eq!((cells[3].w1_index, cells[3].w2_index, cells[3].replicate), (2, 1, 1));
+        assert_eq!((cells[3].w1, cells[3].w2), (4.0, -6.0));
+        let seeds: std::collections::BTreeSet<u64> = cells.iter().map(|c| c.seed).collect();
+        assert_eq!(seeds.len(), 4);
+        // The wire form round-trips.
+        let back = SweepSpec::from(crate::pb::SweepSpec::from(&r))
+            .resolve_with(ok)
+            .unwrap();
+        assert_eq!(back.search, r.search);
+
+        let err = |extra: &str| parse(extra).unwrap_err().to_string();
+        assert!(err("[search]\nmethod = \"cmaes\"\nbudget_epochs = 100\n")
+            .contains("one generation of 6 candidates x 1 replicates x 3000 epochs needs 18000"));
+        assert!(err("[search]\nmethod = \"cmaes\"\npopulation = 1\n").contains("search.population is 1"));
+        assert!(err("[search]\nmethod = \"cmaes\"\nsigma = 0\n").contains("search.sigma is 0"));
+        assert!(err("w2 = { values = [-6.0] }\n[search]\nmethod = \"cmaes\"\n").contains("give w1 and w2 a range"));
+        let two = SweepSpec::from_toml(
+            "robot = \"anymal\"\nterrains = [\"flat\", \"rough\"]\npreset_grid = true\n[search]\nmethod = \"cmaes\"\n",
+        )
+        .unwrap()
+        .resolve_with(ok)
+        .unwrap_err()
+        .to_string();
+        assert!(two.contains("searches one terrain"), "{two}");
+        assert!(err("[search]\nmethod = \"asha\"\npopulation = 6\n").contains("belong to method = \"cmaes\""));
     }
 
     #[test]

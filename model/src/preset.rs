@@ -333,6 +333,15 @@ pub struct PpoConfig {
     pub steps_per_env: usize,
     /// Clip the value loss like the surrogate.
     pub clip_value_loss: bool,
+    /// When > 0 the action std is not learned but annealed geometrically from
+    /// `init_noise_std` to this value over `noise_decay_epochs` epochs (0: rsl_rl's learned
+    /// std). The evaluation uses the action mean, which learns to carry the gait only once
+    /// the noise stops doing the stepping for it.
+    #[serde(default)]
+    pub final_noise_std: f64,
+    /// Epochs of the noise annealing (with `final_noise_std`).
+    #[serde(default)]
+    pub noise_decay_epochs: usize,
 }
 
 impl Default for PpoConfig {
@@ -355,6 +364,8 @@ impl Default for PpoConfig {
             num_mini_batches: 4,
             steps_per_env: 24,
             clip_value_loss: true,
+            final_noise_std: 0.0,
+            noise_decay_epochs: 0,
         }
     }
 }
@@ -391,12 +402,14 @@ impl PpoConfig {
                 "num_mini_batches" => self.num_mini_batches = whole()?,
                 "steps_per_env" => self.steps_per_env = whole()?,
                 "clip_value_loss" => self.clip_value_loss = v != 0.0,
+                "final_noise_std" => self.final_noise_std = v,
+                "noise_decay_epochs" => self.noise_decay_epochs = whole()?,
                 _ => {
                     return Err(bad(
                         "unknown hyperparameter; known: init_noise_std, clip_param, gamma, lam, \
                          value_loss_coef, entropy_coef, learning_rate, desired_kl, adaptive_lr, \
                          max_grad_norm, num_learning_epochs, num_mini_batches, steps_per_env, \
-                         clip_value_loss",
+                         clip_value_loss, final_noise_std, noise_decay_epochs",
                     ))
                 }
             }

@@ -217,3 +217,108 @@ async fn asha_survives_a_killed_worker_and_a_restarted_coordinator_between_rungs
             .unwrap();
     assert_eq!(metrics, 40);
 }
+
+/// The evolutionary search end to end: CMA-ES proposes each generation once the last one
+/// has ended; a worker killed and the coordinator restarted between two generations lose
+/// nothing and ask for no generation twice; the best candidate is promoted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cmaes_trains_generation_after_generation_across_a_restart() {
+    let _g = heavy();
+    let tmp = tempfile::tempdir().unwrap();
+    let args = ["--lease-seconds", "2"];
+    let mut coord = Coord::start(tmp.path(), "127.0.0.1:0", &args).await;
+    let addr = coord.addr.clone();
+    let mut c = coord.sweeps().await;
+    let spec = "name = \"cmaes\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\n\
+                w1 = { min = 2.0, max = 12.0, count = 2 }\nw2 = { values = [-10.0, -2.0] }\n\
+                agents_per_cell = 4\nepochs = 10\ncheckpoint_every = 1\nseed = 5\n\
+                eval = { robots = 2, seconds = 1.0 }\n\
+                [search]\nmethod = \"cmaes\"\npopulation = 2\nbudget_epochs = 60\n";
+    let sweep = create(&mut c, spec.to_string()).await;
+    assert_eq!(sweep.cells_total, 2, "generation 0 only");
+    let mut a = start_worker(tmp.path(), &coord.url(), "a");
+    let db = coord.db().await;
+    wait_for("generation 1 to be queued", SWEEP_TIMEOUT, || {
+        let db = db.clone();
+        async move {
+            let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM cells WHERE w1_index = 1")
+                .fetch_one(&db)
+                .await
+                .ok()?;
+            (n >= 2).then_some(())
+        }
+    })
+    .await;
+    a.kill();
+    db.close().await;
+    coord.proc.kill();
+    let coord = Coord::start(tmp.path(), &addr, &args).await;
+    let b = start_worker(tmp.path(), &coord.url(), "b");
+    let done = wait_done(
+        &coord,
+        sweep.sweep_id,
+        SWEEP_TIMEOUT,
+        &[&coord.proc, &a, &b],
+    )
+    .await;
+    assert_eq!(
+        (done.state, done.cells_total, done.cells_done),
+        (pb::SweepState::Done as i32, 6, 6),
+        "60 epochs pay for 3 generations of 2 candidates x 10 epochs"
+    );
+    let db = coord.db().await;
+    let cells: Vec<(i64, i64, i64, f64, f64, f64)> = sqlx::query_as(
+        "SELECT c.id, c.w1_index, c.w2_index, c.w1, c.w2, s.score FROM cells c JOIN scores s ON s.cell_id = c.id \
+         ORDER BY c.w1_index, c.w2_index",
+    )
+    .fetch_all(&db)
+    .await
+    .unwrap();
+    let keys: Vec<(i64, i64)> = cells.iter().map(|c| (c.1, c.2)).collect();
+    assert_eq!(keys, vec![(0, 0), (0, 1), (1, 0), (1, 1), (2, 0), (2, 1)]);
+    for c in &cells {
+        assert!(
+            (2.0..=12.0).contains(&c.3) && (-10.0..=-2.0).contains(&c.4),
+            "candidate outside the axes' ranges: {c:?}"
+        );
+    }
+    let distinct: std::collections::BTreeSet<(u64, u64)> =
+        cells.iter().map(|c| (c.3.to_bits(), c.4.to_bits())).collect();
+    assert_eq!(distinct.len(), 6, "every candidate is a new point: {cells:?}");
+    let best = cells
+        .iter()
+        .fold(None::<(i64, f64)>, |b, c| match b {
+            Some((_, s)) if s >= c.5 => b,
+            _ => Some((c.0, c.5)),
+        })
+        .unwrap()
+        .0;
+    let promoted: i64 = sqlx::query_scalar(
+        "SELECT cell_id FROM promotions WHERE sweep_id = ? AND terrain = '' ORDER BY id DESC LIMIT 1",
+    )
+    .bind(sweep.sweep_id)
+    .fetch_one(&db)
+    .await
+    .unwrap();
+    assert_eq!(promoted, best);
+    let trained: i64 = sqlx::query_scalar("SELECT SUM(epochs_done) FROM cells")
+        .fetch_one(&db)
+        .await
+        .unwrap();
+    assert_eq!(trained, 60);
+
+    let out = std::process::Command::new(bin("coordinator"))
+        .args([
+            "show",
+            "--connect",
+            &coord.url(),
+            &sweep.sweep_id.to_string(),
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains("generation"),
+        "show output: {text}"
+    );
+}

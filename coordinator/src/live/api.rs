@@ -66,13 +66,28 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
         .iter()
         .map(|s| {
             let epochs_done = done.get(&s.id.0).copied().unwrap_or(0);
-            let epochs_total = i64::from(s.cells_total) * i64::from(s.spec.epochs);
+            // An evolutionary search's cells appear generation by generation: its total is
+            // the budget.
+            let epochs_total = match s.spec.search {
+                gaitsweep_core::Search::Cmaes {
+                    population,
+                    generations,
+                    ..
+                } => {
+                    i64::from(population)
+                        * i64::from(generations)
+                        * i64::from(s.spec.replicates.max(1))
+                        * i64::from(s.spec.epochs)
+                }
+                _ => i64::from(s.cells_total) * i64::from(s.spec.epochs),
+            };
             let running = s.state == gaitsweep_core::SweepState::Running;
             let secs = (now - s.created_unix_ms).max(1) as f64 / 1000.0;
             let rate = (running && epochs_done > 0).then(|| epochs_done as f64 / secs);
             let search = match s.spec.search {
                 gaitsweep_core::Search::Grid => "grid",
                 gaitsweep_core::Search::Asha { .. } => "asha",
+                gaitsweep_core::Search::Cmaes { .. } => "cmaes",
             };
             SweepSummary {
                 id: s.id.0,
@@ -95,7 +110,7 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
                 epochs_per_second: rate,
                 // Successive halving never trains every epoch: no ETA from the grid's total.
                 eta_seconds: rate
-                    .filter(|_| search == "grid")
+                    .filter(|_| search != "asha")
                     .map(|r| (epochs_total - epochs_done).max(0) as f64 / r),
             }
         })

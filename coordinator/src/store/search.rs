@@ -1,15 +1,17 @@
 //! Search strategies in the store: results at successive-halving rungs and the rung
-//! decisions of [`crate::asha`], applied inside the transaction that records a result or
-//! ends an attempt.
+//! decisions of [`crate::asha`], and the generations of the evolutionary search
+//! ([`crate::evolution`]), applied inside the transaction that records a result or ends an
+//! attempt.
 
 use super::rows::spec_of;
 use super::sqlite::{
     cell_tx, end_winning_attempt, finish_if_done, refuse_closed, require_uploaded, Tx,
 };
 use super::ResultOutcome;
+use crate::evolution::{self, EvolutionParams, NextStep};
 use crate::{asha, Error, Result};
 use gaitsweep_core::records::RungDecisionRecord;
-use gaitsweep_core::{CellId, CellState, LeaseId, Search, SweepId};
+use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, Search, SweepId};
 use gaitsweep_model::GaitScore;
 use std::collections::BTreeMap;
 
@@ -211,4 +213,131 @@ pub(super) async fn record_periodic_eval(
     .execute(&mut **tx)
     .await?;
     Ok(())
+}
+
+/// The evolutionary search's parameters for a spec, or `None` for other searches.
+pub(super) fn evolution_params(spec: &ResolvedSpec) -> Option<EvolutionParams> {
+    let Search::Cmaes {
+        population,
+        sigma,
+        generations,
+    } = spec.search
+    else {
+        return None;
+    };
+    let (lo, hi) = spec.bounds();
+    Some(EvolutionParams {
+        bounds: evolution::Bounds { lo, hi },
+        population: population as usize,
+        sigma,
+        generations,
+        seed: spec.seed,
+    })
+}
+
+/// Inserts the cells of an evolutionary search's generation `generation` (queued, trained to
+/// the spec's epochs); returns how many.
+pub(super) async fn insert_generation(
+    tx: &mut Tx,
+    sweep: SweepId,
+    spec: &ResolvedSpec,
+    generation: u32,
+    candidates: &[[f64; 2]],
+) -> Result<usize> {
+    let cells = spec.candidate_cells(generation, candidates);
+    for c in &cells {
+        sqlx::query(
+            "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, replicate, seed, state, target_epochs) \
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?)",
+        )
+        .bind(sweep.0)
+        .bind(c.terrain_index as i64)
+        .bind(c.terrain.to_string())
+        .bind(c.w1_index as i64)
+        .bind(c.w2_index as i64)
+        .bind(c.w1)
+        .bind(c.w2)
+        .bind(i64::from(c.replicate))
+        .bind(c.seed as i64)
+        .bind(i64::from(spec.epochs))
+        .execute(&mut **tx)
+        .await?;
+    }
+    Ok(cells.len())
+}
+
+/// The first generation of an evolutionary search.
+pub(super) fn first_generation(spec: &ResolvedSpec) -> Result<Vec<[f64; 2]>> {
+    let params = evolution_params(spec)
+        .ok_or_else(|| Error::BadRequest("the spec's search is not cmaes".into()))?;
+    match evolution::next_step(&params, &[]).map_err(Error::BadRequest)? {
+        NextStep::Generation(c) => Ok(c),
+        NextStep::Done(why) => Err(Error::BadRequest(format!(
+            "the evolutionary search has nothing to train: {why}"
+        ))),
+    }
+}
+
+/// Once every cell of an evolutionary search's latest generation has ended, asks CMA-ES for
+/// the next one (replaying the stored generations, see [`crate::evolution`]) and queues its
+/// cells; returns the new generation's number and size. A candidate's score is the mean of
+/// its scored replicates; one with none (failed for good) ranks below its generation.
+/// Nothing for other searches, an open generation or a sweep that is not running.
+pub(super) async fn apply_evolution(tx: &mut Tx, sweep: SweepId) -> Result<Option<(u32, usize)>> {
+    let (spec_json, state): (String, String) =
+        sqlx::query_as("SELECT spec_json, state FROM sweeps WHERE id = ?")
+            .bind(sweep.0)
+            .fetch_one(&mut **tx)
+            .await?;
+    let spec = spec_of(&spec_json)?;
+    let Some(params) = evolution_params(&spec) else {
+        return Ok(None);
+    };
+    if state != "running" {
+        return Ok(None);
+    }
+    let rows: Vec<(i64, i64, String, Option<f64>)> = sqlx::query_as(
+        "SELECT c.w1_index, c.w2_index, c.state, s.score FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
+         WHERE c.sweep_id = ? ORDER BY c.w1_index, c.w2_index, c.replicate",
+    )
+    .bind(sweep.0)
+    .fetch_all(&mut **tx)
+    .await?;
+    if rows
+        .iter()
+        .any(|r| matches!(r.2.as_str(), "queued" | "running" | "paused"))
+    {
+        return Ok(None);
+    }
+    let generations = rows.iter().map(|r| r.0 + 1).max().unwrap_or(0) as usize;
+    let mut sums: Vec<Vec<(f64, u32)>> = vec![vec![(0.0, 0); params.population]; generations];
+    for (g, k, _, score) in &rows {
+        let slot = &mut sums[*g as usize][*k as usize];
+        if let Some(s) = score {
+            slot.0 += s;
+            slot.1 += 1;
+        }
+    }
+    let history: Vec<Vec<f64>> = sums
+        .iter()
+        .map(|g| {
+            let means: Vec<Option<f64>> = g
+                .iter()
+                .map(|(sum, n)| (*n > 0).then(|| sum / f64::from(*n)))
+                .collect();
+            evolution::failed_fitness(&means)
+        })
+        .collect();
+    match evolution::next_step(&params, &history).map_err(Error::BadRequest)? {
+        NextStep::Generation(candidates) => {
+            let generation = generations as u32;
+            let n = insert_generation(tx, sweep, &spec, generation, &candidates).await?;
+            tracing::info!(sweep = sweep.0, generation, cells = n, "evolutionary search: next generation queued");
+            Ok(Some((generation, n)))
+        }
+        NextStep::Done(why) => {
+            tracing::info!(sweep = sweep.0, generations, reason = %why, "evolutionary search done");
+            Ok(None)
+        }
+    }
 }

@@ -2,7 +2,7 @@
 //! start with `BEGIN IMMEDIATE` (so they never fail on a busy snapshot), a pool of readers.
 
 use super::rows::{spec_of, CellRow, SweepRow, CELL_COLUMNS, SWEEP_COLUMNS};
-use super::search::{apply_asha, record_periodic_eval, rung_result};
+use super::search::{self, apply_asha, record_periodic_eval, rung_result};
 use super::{
     AttemptEnd, AttemptOutcome, LeaseGrant, ResultOutcome, RunningLease, Store, WorkerInfo,
 };
@@ -363,8 +363,17 @@ impl Store for SqliteStore {
         .bind(now_ms)
         .fetch_one(&mut *tx)
         .await?;
+        if search::evolution_params(spec).is_some() {
+            let candidates = search::first_generation(spec)?;
+            search::insert_generation(&mut tx, SweepId(id), spec, 0, &candidates).await?;
+        }
         let first_target = spec.rungs()[0];
-        for c in spec.cells() {
+        let grid = if search::evolution_params(spec).is_some() {
+            vec![]
+        } else {
+            spec.cells()
+        };
+        for c in grid {
             sqlx::query(
                 "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, replicate, seed, state, target_epochs) \
                  VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?)",
@@ -781,6 +790,7 @@ impl Store for SqliteStore {
         .await?;
         let cell = cell_tx(&mut tx, cell_id).await?;
         let promotions = promote_point(&mut tx, &cell, now_ms).await?;
+        search::apply_evolution(&mut tx, sweep).await?;
         let finished = finish_if_done(&mut tx, sweep, now_ms).await?;
         tx.commit().await?;
         Ok(ResultOutcome {
@@ -851,6 +861,8 @@ impl Store for SqliteStore {
         }
         // A cell that failed for good may close a rung others wait at.
         let decisions = apply_asha(&mut tx, sweep, now_ms).await?;
+        // ... or the last open cell of an evolutionary search's generation.
+        search::apply_evolution(&mut tx, sweep).await?;
         let cell = cell_tx(&mut tx, cell_id).await?;
         let finished = finish_if_done(&mut tx, sweep, now_ms).await?;
         tx.commit().await?;

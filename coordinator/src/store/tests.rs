@@ -609,3 +609,71 @@ async fn a_cell_failing_for_good_closes_the_rung_it_never_reached() {
     let g = store.lease_next(&w, 0, 4).await.unwrap().unwrap();
     assert_eq!(g.cell.target_epochs, 4);
 }
+
+#[tokio::test]
+async fn the_evolutionary_search_queues_a_generation_when_the_last_one_ends() {
+    let (_d, store, w) = setup().await;
+    let mut s = spec(3, 3, vec![TerrainKind::Flat]);
+    s.replicates = 2;
+    s.search = gaitsweep_core::Search::Cmaes {
+        population: 3,
+        sigma: 0.3,
+        generations: 2,
+    };
+    let sweep = store.create_sweep(&s, 0).await.unwrap();
+    let gen0 = store.cells(sweep.id).await.unwrap();
+    assert_eq!(gen0.len(), 6, "3 candidates x 2 replicates");
+    for c in &gen0 {
+        assert_eq!((c.w1_index, c.target_epochs), (0, 3));
+        assert!((0.0..=2.0).contains(&c.w1) && (-2.0..=0.0).contains(&c.w2), "{c:?}");
+    }
+    // A candidate's replicates share its (w1, w2), and their seeds differ.
+    assert_eq!((gen0[0].w1, gen0[0].w2), (gen0[1].w1, gen0[1].w2));
+    assert_ne!(gen0[0].seed, gen0[1].seed);
+
+    // Generation 0: score = w1 (the best candidate has the largest w1); one cell fails
+    // for good, and its candidate still has its other replicate's score.
+    let mut now = 1;
+    for n in 0..6 {
+        let g = store.lease_next(&w, 0, now).await.unwrap().unwrap();
+        assert_eq!(g.cell.w1_index, 0);
+        now += 1;
+        if n == 1 {
+            let end = store
+                .end_attempt(g.lease, AttemptEnd::Failed, "nan", 1, now)
+                .await
+                .unwrap();
+            assert_eq!(end.cell.state, CellState::Failed);
+            continue;
+        }
+        let out = report_at_target(&store, &g, g.cell.w1, now).await;
+        assert!(out.finished.is_none(), "one more generation to go");
+        let queued = store.cells(sweep.id).await.unwrap().len();
+        assert_eq!(queued, if n < 5 { 6 } else { 12 }, "generation 1 waits for all of 0");
+    }
+    let cells = store.cells(sweep.id).await.unwrap();
+    let gen1: Vec<_> = cells.iter().filter(|c| c.w1_index == 1).collect();
+    assert_eq!(gen1.len(), 6);
+    assert!(gen1.iter().all(|c| c.state == CellState::Queued));
+
+    // Generation 1 ends the budget: the sweep finishes, the best candidate mean promoted.
+    let mut finished = None;
+    while let Some(g) = store.lease_next(&w, 0, now).await.unwrap() {
+        now += 1;
+        let out = report_at_target(&store, &g, g.cell.w1, now).await;
+        finished = finished.or(out.finished);
+    }
+    let done = finished.expect("the budget's two generations end the sweep");
+    assert_eq!(done.state, SweepState::Done);
+    assert_eq!(store.cells(sweep.id).await.unwrap().len(), 12);
+    let best = store.promoted(sweep.id, None).await.unwrap();
+    let max_w1 = store
+        .cells(sweep.id)
+        .await
+        .unwrap()
+        .iter()
+        .filter(|c| c.state == CellState::Done)
+        .map(|c| c.w1)
+        .fold(f64::MIN, f64::max);
+    assert_eq!(best.cell.w1, max_w1);
+}

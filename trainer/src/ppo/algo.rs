@@ -123,6 +123,29 @@ impl Ppo {
         Ok(())
     }
 
+    /// The annealed action std at `epoch`, or `None` when the std is learned.
+    pub fn scheduled_noise_std(&self, epoch: u32) -> Option<f64> {
+        let p = &self.params;
+        if p.final_noise_std <= 0.0 {
+            return None;
+        }
+        let frac = if p.noise_decay_epochs == 0 {
+            1.0
+        } else {
+            (f64::from(epoch) / p.noise_decay_epochs as f64).min(1.0)
+        };
+        Some((p.init_noise_std.ln() * (1.0 - frac) + p.final_noise_std.ln() * frac).exp())
+    }
+
+    /// Sets the action std to its annealed value at `epoch` (no-op when it is learned).
+    pub fn apply_noise_schedule(&mut self, epoch: u32) {
+        if let Some(std) = self.scheduled_noise_std(epoch) {
+            tch::no_grad(|| {
+                let _ = self.model.log_std.fill_(std.ln());
+            });
+        }
+    }
+
     /// Runs the learning epochs over `batch` (mini-batches shuffled with `rng`) and
     /// returns averaged statistics.
     pub fn update(&mut self, batch: &Batch, rng: &mut ChaCha8Rng) -> Result<UpdateStats> {
@@ -214,6 +237,12 @@ impl Ppo {
                     return Err(non_finite("gradients"));
                 }
                 self.optim.step();
+                if p.final_noise_std > 0.0 {
+                    // An annealed std is not a parameter: undo the optimiser's step on it.
+                    tch::no_grad(|| {
+                        let _ = self.model.log_std.copy_(&old_log_std);
+                    });
+                }
 
                 stats.value_loss += value_loss.double_value(&[]);
                 stats.surrogate_loss += surrogate.double_value(&[]);

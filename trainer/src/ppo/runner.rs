@@ -146,6 +146,7 @@ impl<E: VecEnvLike> Runner<E> {
             self.needs_reseed = false;
         }
         stats.sim_seconds += t0.elapsed().as_secs_f64();
+        self.ppo.apply_noise_schedule(self.epoch);
 
         let p = &self.ppo.params;
         let (steps, gamma, lam) = (p.steps_per_env, p.gamma, p.lam);
