@@ -179,6 +179,7 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
             .flatten();
     Ok(Json(json!({
         "id": data.sweep_id,
+        "search": if data.evolution.is_some() { "cmaes" } else { "grid" },
         "name": data.name,
         "robot": data.robot,
         "state": data.state,

@@ -143,6 +143,12 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         let _ = writeln!(o, "<h2>Terrain: {}</h2>", esc(terrain));
         fig(
             &mut o,
+            &format!("candidates_{s}"),
+            &format!("the evolutionary search's candidates on {terrain}, by generation"),
+            "",
+        );
+        fig(
+            &mut o,
             &format!("score_{s}"),
             &format!("gait score over (w1, w2) on {terrain}"),
             "",

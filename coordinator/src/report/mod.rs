@@ -115,6 +115,10 @@ pub struct ReportData {
     pub cells: Vec<ReportCell>,
     /// Latest promotion per terrain ('' = overall).
     pub promotions: Vec<Promotion>,
+    /// For an evolutionary search, the (w1, w2) rectangle it searched
+    /// (`([w1_lo, w2_lo], [w1_hi, w2_hi])`): its cells are candidates (`w1_index` =
+    /// generation), not grid points, and the report draws them instead of grid pictures.
+    pub evolution: Option<([f64; 2], [f64; 2])>,
 }
 
 impl ReportData {
@@ -263,6 +267,8 @@ pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportDat
         w2_values: spec.w2_values.clone(),
         cells: Vec::new(),
         promotions: Vec::new(),
+        evolution: matches!(spec.search, gaitsweep_core::Search::Cmaes { .. })
+            .then(|| spec.bounds()),
     };
 
     let sql = format!(

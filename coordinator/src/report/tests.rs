@@ -82,6 +82,7 @@ fn synthetic() -> ReportData {
         w2_values: w2,
         cells,
         promotions: vec![],
+        evolution: None,
     }
 }
 
@@ -442,4 +443,38 @@ fn replicated_points_are_drawn_as_their_mean() {
             }
         }
     }
+}
+
+#[test]
+fn an_evolutionary_search_is_drawn_as_its_candidates() {
+    // Three generations of four candidates, read as an evolutionary search's cells
+    // (w1_index = generation, w2_index = candidate) on one terrain.
+    let mut d = synthetic();
+    d.terrains.truncate(1);
+    d.cells.retain(|c| c.terrain_index == 0);
+    for (n, c) in d.cells.iter_mut().enumerate() {
+        c.w1 = 2.0 + (n as f64 * 0.77) % 10.0;
+        c.w2 = -10.0 + (n as f64 * 1.31) % 8.0;
+    }
+    d.evolution = Some(([2.0, -10.0], [12.0, -2.0]));
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_report(&d, dir.path(), &GifStatus::NotMade("x".into()))
+        .unwrap()
+        .files;
+    if let Some(keep) = std::env::var_os("GAITSWEEP_KEEP_REPORT") {
+        write_report(&d, Path::new(&keep), &GifStatus::NotMade("x".into())).unwrap();
+    }
+    let png = dir.path().join("candidates_flat.png");
+    assert!(files.contains(&png));
+    assert_png(&png, 900, 700);
+    assert_svg(
+        &dir.path().join("candidates_flat.svg"),
+        &["CMA-ES", "12 candidates in 3 generations", "log10 torque weight", "gait score"],
+    );
+    assert!(
+        !dir.path().join("score_flat.png").exists(),
+        "no grid heatmap for candidates off the grid"
+    );
+    let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
+    assert!(html.contains("candidates_flat.png") && html.contains("curves_flat.png"));
 }

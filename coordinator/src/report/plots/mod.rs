@@ -180,10 +180,12 @@ fn value_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
     Some((lo, hi))
 }
 
+mod candidates;
 mod curves;
 mod heatmap;
 mod surface;
 
+use candidates::{Candidate, Candidates};
 use curves::Curves;
 use heatmap::{Better, Heatmap};
 use surface::Surface;
@@ -232,6 +234,9 @@ pub fn draw_all(d: &ReportData, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
         "sweep {} \u{201c}{}\u{201d}, robot {}",
         d.sweep_id, d.name, d.robot
     );
+    if let Some(bounds) = d.evolution {
+        return draw_evolution(d, out, &who, bounds);
+    }
     for (t, terrain) in d.terrains.iter().enumerate() {
         let s = slug(terrain);
         let scored = d.cells_of(t).filter(|c| c.value().is_some()).count();
@@ -327,6 +332,62 @@ pub fn draw_all(d: &ReportData, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
             integer: true,
         };
         files.extend(save(&heat, out, "overlap")?);
+    }
+    Ok(files)
+}
+
+/// An evolutionary search's pictures: its candidates in the (w2, w1) plane and the
+/// learning curves, per terrain (a search has one).
+fn draw_evolution(
+    d: &ReportData,
+    out: &Path,
+    who: &str,
+    bounds: ([f64; 2], [f64; 2]),
+) -> anyhow::Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    let promoted = d.promoted().map(|c| (c.w1_index, c.w2_index));
+    for (t, terrain) in d.terrains.iter().enumerate() {
+        let s = slug(terrain);
+        let mut points: Vec<(usize, usize)> =
+            d.cells_of(t).map(|c| (c.w1_index, c.w2_index)).collect();
+        points.sort_unstable();
+        points.dedup();
+        let candidates: Vec<Candidate> = points
+            .iter()
+            .filter_map(|&(g, k)| {
+                let reps: Vec<&ReportCell> = d
+                    .cells_of(t)
+                    .filter(|c| (c.w1_index, c.w2_index) == (g, k))
+                    .collect();
+                let scores: Vec<f64> = reps.iter().filter_map(|c| c.value()).collect();
+                let first = reps.first()?;
+                Some(Candidate {
+                    w1: first.w1,
+                    w2: first.w2,
+                    generation: g,
+                    score: (!scores.is_empty())
+                        .then(|| scores.iter().sum::<f64>() / scores.len() as f64),
+                    promoted: promoted == Some((g, k)),
+                })
+            })
+            .collect();
+        let generations = points.last().map_or(0, |p| p.0 + 1);
+        let fig = Candidates {
+            title: format!("Evolutionary search (CMA-ES) on {terrain}: {who}"),
+            subtitle: format!(
+                "{} candidates in {generations} generations, labelled by generation; colour: gait score (mean over replicates); \u{2605} promoted; rings: not scored",
+                candidates.len()
+            ),
+            bounds,
+            candidates,
+        };
+        files.extend(save(&fig, out, &format!("candidates_{s}"))?);
+        let curves = Curves {
+            title: format!("Learning curves on {terrain}: {who}"),
+            cells: d.cells_of(t).collect(),
+            promoted: d.promoted().map(|c| c.id),
+        };
+        files.extend(save(&curves, out, &format!("curves_{s}"))?);
     }
     Ok(files)
 }
