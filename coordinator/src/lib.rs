@@ -12,6 +12,7 @@ pub mod live;
 pub mod presets;
 pub mod report;
 pub mod sched;
+pub mod searchbench;
 pub mod serve;
 pub mod service;
 pub mod store;

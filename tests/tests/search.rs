@@ -322,3 +322,48 @@ async fn cmaes_trains_generation_after_generation_across_a_restart() {
         "show output: {text}"
     );
 }
+
+/// Item 5 of the search issue on real processes: a full grid recorded with `eval.every`
+/// exports as a search-bench recording, and the bench replays it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_recorded_grid_replays_in_the_search_bench() {
+    let _g = heavy();
+    let tmp = tempfile::tempdir().unwrap();
+    let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
+    let mut c = coord.sweeps().await;
+    let spec = "name = \"record\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\n\
+                w1 = { values = [2.0, 8.0] }\nw2 = { values = [-6.0, -2.0] }\n\
+                agents_per_cell = 4\nepochs = 3\ncheckpoint_every = 1\nseed = 3\nseeds = 2\n\
+                eval = { robots = 2, seconds = 1.0, every = 1 }\n";
+    let sweep = create(&mut c, spec.to_string()).await;
+    let w = start_worker(tmp.path(), &coord.url(), "a");
+    let done = wait_done(&coord, sweep.sweep_id, SWEEP_TIMEOUT, &[&coord.proc, &w]).await;
+    assert_eq!(done.cells_done, 8);
+    let data_dir = coord.data.clone();
+    let out = std::process::Command::new(bin("search-bench"))
+        .args(["export", "--data-dir"])
+        .arg(&data_dir)
+        .args(["--sweep", &sweep.sweep_id.to_string()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rec: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(rec["points"].as_array().unwrap().len(), 4);
+    let run0 = &rec["points"][0]["runs"][0];
+    assert_eq!(rec["points"][0]["runs"].as_array().unwrap().len(), 2);
+    assert!(run0["evals"]["1"].is_number() && run0["evals"]["2"].is_number(), "{run0}");
+    let file = tmp.path().join("grid.json");
+    std::fs::write(&file, &out.stdout).unwrap();
+    let out = std::process::Command::new(bin("search-bench"))
+        .args(["run", "--data"])
+        .arg(&file)
+        .args(["--replays", "20", "--reduction", "2", "--population", "2", "--budget-fraction", "1"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        text.contains("asha rungs [1, 2, 3]") && text.contains("cma-es pop 2"),
+        "{text}"
+    );
+}

@@ -1,0 +1,265 @@
+//! `search-bench`: the offline search benchmark (see `gaitsweep_coordinator::searchbench`).
+//!
+//! `search-bench export --data-dir DIR --sweep N > grid.json` writes a recorded full-grid
+//! sweep (every replicate's final score and intermediate evaluations) from a coordinator's
+//! database; `search-bench run --data grid.json --replays 200` replays the grid, successive
+//! halving and CMA-ES over it and prints what each spends and finds.
+
+use anyhow::{bail, Context};
+use clap::{Parser, Subcommand};
+use gaitsweep_coordinator::searchbench::{
+    self, AshaSetup, CmaesSetup, RecordedPoint, RecordedRun, Recording, Summary,
+};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "search-bench",
+    about = "replay search strategies offline over a recorded full-grid sweep"
+)]
+struct Args {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Write a recorded grid sweep as JSON (stdout) from a coordinator's data dir.
+    Export {
+        /// The coordinator's data dir.
+        #[arg(long)]
+        data_dir: PathBuf,
+        /// Sweep id (a full grid, every point scored).
+        #[arg(long)]
+        sweep: i64,
+        /// Terrain (default: the sweep's first).
+        #[arg(long)]
+        terrain: Option<String>,
+    },
+    /// Replay the strategies over a recording and print their figures.
+    Run {
+        /// The recording (`export`'s output).
+        #[arg(long)]
+        data: PathBuf,
+        /// Replays per strategy (seeds 0..replays).
+        #[arg(long, default_value_t = 200)]
+        replays: u64,
+        /// Simulated workers for successive halving.
+        #[arg(long, default_value_t = 4)]
+        workers: usize,
+        /// First rung of successive halving, epochs (default: the smallest evaluated epoch
+        /// with a rung sequence that is evaluated everywhere).
+        #[arg(long)]
+        min_epochs: Option<u32>,
+        /// Reduction factor of successive halving.
+        #[arg(long, default_value_t = 3)]
+        reduction: u32,
+        /// CMA-ES candidates per generation.
+        #[arg(long, default_value_t = 6)]
+        population: usize,
+        /// CMA-ES initial step, a fraction of each axis' range.
+        #[arg(long, default_value_t = 0.3)]
+        sigma: f64,
+        /// CMA-ES epoch budget as a fraction of the grid's.
+        #[arg(long, default_value_t = 1.0 / 3.0)]
+        budget_fraction: f64,
+    },
+}
+
+#[tokio::main(flavor = "current_thread")]
+async fn main() -> anyhow::Result<()> {
+    match Args::parse().cmd {
+        Cmd::Export {
+            data_dir,
+            sweep,
+            terrain,
+        } => {
+            let rec = export(&data_dir, sweep, terrain.as_deref()).await?;
+            rec.validate().map_err(anyhow::Error::msg)?;
+            println!("{}", serde_json::to_string_pretty(&rec)?);
+            Ok(())
+        }
+        Cmd::Run {
+            data,
+            replays,
+            workers,
+            min_epochs,
+            reduction,
+            population,
+            sigma,
+            budget_fraction,
+        } => {
+            let text = std::fs::read_to_string(&data)
+                .with_context(|| format!("read {}", data.display()))?;
+            let rec: Recording = serde_json::from_str(&text)
+                .with_context(|| format!("{} is not a search-bench recording", data.display()))?;
+            rec.validate().map_err(anyhow::Error::msg)?;
+            let min_epochs = match min_epochs {
+                Some(m) => m,
+                None => default_min_epochs(&rec, reduction)?,
+            };
+            let asha = AshaSetup {
+                min_epochs,
+                reduction,
+                workers,
+            };
+            let rungs = searchbench::asha_rungs(&rec, &asha).map_err(anyhow::Error::msg)?;
+            let cmaes = CmaesSetup {
+                population,
+                sigma,
+                budget_fraction,
+            };
+            let (best_point, best) = rec.best();
+            let runs: usize = rec.points.iter().map(|p| p.runs.len()).sum();
+            println!(
+                "recording: {} ({} on {}, {} x {} points, {runs} runs, {} epochs); grid best: w1 {}, w2 {}, mean {best:.4}",
+                data.display(),
+                rec.source,
+                rec.terrain,
+                rec.w1_values.len(),
+                rec.w2_values.len(),
+                rec.epochs,
+                rec.w1_values[best_point.0],
+                rec.w2_values[best_point.1],
+            );
+            let mut a = Vec::new();
+            let mut c = Vec::new();
+            for seed in 0..replays {
+                a.push(searchbench::replay_asha(&rec, &asha, seed).map_err(anyhow::Error::msg)?);
+                c.push(searchbench::replay_cmaes(&rec, &cmaes, seed).map_err(anyhow::Error::msg)?);
+            }
+            println!(
+                "{:<44} {:>8} {:>8} {:>12} {:>10} {:>12} {:>10}",
+                "strategy", "replays", "epochs", "mean regret", "max regret", "P(best)", "P(<= 5%)"
+            );
+            let grid = Summary {
+                replays: 1,
+                epoch_fraction: 1.0,
+                mean_regret: 0.0,
+                max_regret: 0.0,
+                p_best: 1.0,
+                p_within_5pct: 1.0,
+            };
+            for (name, s) in [
+                ("grid (every point to the end)".to_string(), grid),
+                (
+                    format!("asha rungs {rungs:?}, eta {reduction}, {workers} workers"),
+                    searchbench::summarise(&a),
+                ),
+                (
+                    format!("cma-es pop {population}, sigma {sigma}, budget {budget_fraction:.3}"),
+                    searchbench::summarise(&c),
+                ),
+            ] {
+                println!(
+                    "{name:<44} {:>8} {:>7.1}% {:>12.4} {:>10.4} {:>11.1}% {:>9.1}%",
+                    s.replays,
+                    100.0 * s.epoch_fraction,
+                    s.mean_regret,
+                    s.max_regret,
+                    100.0 * s.p_best,
+                    100.0 * s.p_within_5pct
+                );
+            }
+            Ok(())
+        }
+    }
+}
+
+/// The smallest evaluated epoch from which every rung is evaluated in every run.
+fn default_min_epochs(rec: &Recording, reduction: u32) -> anyhow::Result<u32> {
+    for m in rec.common_eval_epochs() {
+        let s = AshaSetup {
+            min_epochs: m,
+            reduction,
+            workers: 1,
+        };
+        if searchbench::asha_rungs(rec, &s).is_ok() {
+            return Ok(m);
+        }
+    }
+    bail!("no rung sequence with reduction {reduction} is evaluated in every run: give --min-epochs")
+}
+
+async fn export(
+    data_dir: &std::path::Path,
+    sweep: i64,
+    terrain: Option<&str>,
+) -> anyhow::Result<Recording> {
+    let db = gaitsweep_coordinator::report::open_db(data_dir).await?;
+    let (name, spec_json): (String, String) =
+        sqlx::query_as("SELECT name, spec_json FROM sweeps WHERE id = ?")
+            .bind(sweep)
+            .fetch_optional(&db)
+            .await?
+            .with_context(|| format!("no sweep {sweep} in {}", data_dir.display()))?;
+    let spec: gaitsweep_core::ResolvedSpec = serde_json::from_str(&spec_json)?;
+    if spec.search != gaitsweep_core::Search::Grid {
+        bail!("sweep {sweep} is not a full grid: record a grid (no [search]) with eval.every");
+    }
+    let terrain = terrain
+        .map(str::to_string)
+        .or_else(|| spec.terrains.first().map(|t| t.to_string()))
+        .context("the sweep has no terrain")?;
+    let rows: Vec<(i64, i64, i64, i64, f64)> = sqlx::query_as(
+        "SELECT c.id, c.w1_index, c.w2_index, c.seed, s.score FROM cells c JOIN scores s ON s.cell_id = c.id \
+         WHERE c.sweep_id = ? AND c.terrain = ? ORDER BY c.w1_index, c.w2_index, c.replicate",
+    )
+    .bind(sweep)
+    .bind(&terrain)
+    .fetch_all(&db)
+    .await?;
+    let evals: Vec<(i64, i64, f64)> = sqlx::query_as(
+        "SELECT e.cell_id, e.epoch, e.score FROM evaluations e JOIN cells c ON c.id = e.cell_id \
+         WHERE c.sweep_id = ? ORDER BY e.cell_id, e.epoch",
+    )
+    .bind(sweep)
+    .fetch_all(&db)
+    .await?;
+    let mut by_cell: BTreeMap<i64, BTreeMap<u32, f64>> = BTreeMap::new();
+    for (cell, epoch, score) in evals {
+        by_cell.entry(cell).or_default().insert(epoch as u32, score);
+    }
+    let mut points: BTreeMap<(usize, usize), Vec<RecordedRun>> = BTreeMap::new();
+    for (id, i, j, seed, score) in rows {
+        points
+            .entry((i as usize, j as usize))
+            .or_default()
+            .push(RecordedRun {
+                seed: seed as u64,
+                score,
+                evals: by_cell.remove(&id).unwrap_or_default(),
+            });
+    }
+    let mut w1 = spec.w1_values.clone();
+    let mut w2 = spec.w2_values.clone();
+    // The recording's axes ascend; grids may list values in any order.
+    let order = |v: &mut Vec<f64>| -> Vec<usize> {
+        let mut idx: Vec<usize> = (0..v.len()).collect();
+        idx.sort_by(|&a, &b| v[a].total_cmp(&v[b]));
+        let sorted: Vec<f64> = idx.iter().map(|&k| v[k]).collect();
+        *v = sorted;
+        let mut rank = vec![0; idx.len()];
+        for (r, &k) in idx.iter().enumerate() {
+            rank[k] = r;
+        }
+        rank
+    };
+    let (r1, r2) = (order(&mut w1), order(&mut w2));
+    Ok(Recording {
+        source: format!("sweep {sweep} {name:?}, seeds {}", spec.replicates),
+        terrain,
+        epochs: spec.epochs,
+        w1_values: w1,
+        w2_values: w2,
+        points: points
+            .into_iter()
+            .map(|((i, j), runs)| RecordedPoint {
+                w1_index: r1[i],
+                w2_index: r2[j],
+                runs,
+            })
+            .collect(),
+    })
+}

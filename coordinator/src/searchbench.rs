@@ -1,0 +1,467 @@
+//! The offline search benchmark: replays search strategies over a recorded full-grid sweep
+//! (every replicate's final score and its evaluations at intermediate epochs), many times
+//! with different arrival orders and replicate draws, and measures what each strategy
+//! spends and finds against the grid's own answer. Pure: the caller loads the recording
+//! (`search-bench export` writes one from a coordinator's database).
+//!
+//! - **Grid**: every point trained to the end; its answer (the best point mean of the
+//!   final scores) is the reference.
+//! - **ASHA**: every replay draws one recorded replicate per point (the noise a single run
+//!   has), puts the points in a random order and runs them on `workers` simulated workers
+//!   with [`crate::asha::decide`], the function the coordinator uses; a cell's rung score is
+//!   its replicate's evaluation at the rung epoch. The answer is the best final score among
+//!   the cells trained to the end.
+//! - **CMA-ES**: [`crate::evolution::next_step`] over the axes' rectangle with the replay's
+//!   seed; a candidate between grid points is scored by interpolating, bilinearly in
+//!   (w1, w2) between the four surrounding points, one randomly drawn replicate's final
+//!   score of each (a fresh draw per candidate). Its answer is the candidate with the best
+//!   observed score; its true value is the same interpolation of the point means.
+//!
+//! A replay *finds the best* when its answer's nearest grid point is the grid's best point,
+//! and is *within 5%* when the answer's true value is at least the best mean minus 5% of
+//! its magnitude. Regret is the best mean minus the answer's true value.
+
+use crate::asha::{self, AshaCell, Standing};
+use crate::evolution::{self, Bounds, EvolutionParams, NextStep};
+use gaitsweep_core::CellId;
+use rand::rngs::StdRng;
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, VecDeque};
+
+/// One recorded training run (a replicate of a grid point).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordedRun {
+    /// Its seed.
+    pub seed: u64,
+    /// The gait score at the full budget.
+    pub score: f64,
+    /// Gait scores of its intermediate evaluations, by epoch.
+    pub evals: BTreeMap<u32, f64>,
+}
+
+/// One grid point and its replicates.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordedPoint {
+    /// Row.
+    pub w1_index: usize,
+    /// Column.
+    pub w2_index: usize,
+    /// Every replicate that has a final score.
+    pub runs: Vec<RecordedRun>,
+}
+
+/// A recorded full-grid sweep (one terrain).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Recording {
+    /// Where it came from (sweep name, machine, command).
+    pub source: String,
+    /// Terrain.
+    pub terrain: String,
+    /// Epochs of every run.
+    pub epochs: u32,
+    /// w1 values (rows), ascending.
+    pub w1_values: Vec<f64>,
+    /// w2 values (columns), ascending.
+    pub w2_values: Vec<f64>,
+    /// Every point of the grid.
+    pub points: Vec<RecordedPoint>,
+}
+
+impl Recording {
+    /// Checks that every point has a run and the axes ascend; names what is missing.
+    pub fn validate(&self) -> Result<(), String> {
+        let ascending = |v: &[f64]| v.windows(2).all(|w| w[0] < w[1]) && !v.is_empty();
+        if !ascending(&self.w1_values) || !ascending(&self.w2_values) {
+            return Err("the recording's w1 and w2 values must be non-empty and ascending".into());
+        }
+        for i in 0..self.w1_values.len() {
+            for j in 0..self.w2_values.len() {
+                if self.point(i, j).is_none_or(|p| p.runs.is_empty()) {
+                    return Err(format!(
+                        "grid point (w1 {}, w2 {}) has no scored run: record a full grid",
+                        self.w1_values[i], self.w2_values[j]
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn point(&self, i: usize, j: usize) -> Option<&RecordedPoint> {
+        self.points.iter().find(|p| (p.w1_index, p.w2_index) == (i, j))
+    }
+
+    fn mean(&self, i: usize, j: usize) -> f64 {
+        let p = self.point(i, j).expect("validated");
+        p.runs.iter().map(|r| r.score).sum::<f64>() / p.runs.len() as f64
+    }
+
+    /// The grid's answer: the best point mean and its point.
+    pub fn best(&self) -> ((usize, usize), f64) {
+        let mut best = ((0, 0), f64::NEG_INFINITY);
+        for i in 0..self.w1_values.len() {
+            for j in 0..self.w2_values.len() {
+                let m = self.mean(i, j);
+                if m > best.1 {
+                    best = ((i, j), m);
+                }
+            }
+        }
+        best
+    }
+
+    /// Epochs a full grid with one run per point trains.
+    pub fn grid_epochs(&self) -> u64 {
+        (self.w1_values.len() * self.w2_values.len()) as u64 * u64::from(self.epochs)
+    }
+
+    /// Epochs at which every run has an evaluation.
+    pub fn common_eval_epochs(&self) -> Vec<u32> {
+        let mut common: Option<Vec<u32>> = None;
+        for r in self.points.iter().flat_map(|p| &p.runs) {
+            let e: Vec<u32> = r.evals.keys().copied().collect();
+            common = Some(match common {
+                None => e,
+                Some(c) => c.into_iter().filter(|x| e.contains(x)).collect(),
+            });
+        }
+        common.unwrap_or_default()
+    }
+
+    /// Bilinear interpolation at (w1, w2) of `f(i, j)` over the grid.
+    fn interpolate(&self, w1: f64, w2: f64, f: &mut impl FnMut(usize, usize) -> f64) -> f64 {
+        let (i0, i1, a) = bracket(&self.w1_values, w1);
+        let (j0, j1, b) = bracket(&self.w2_values, w2);
+        (1.0 - a) * ((1.0 - b) * f(i0, j0) + b * f(i0, j1)) + a * ((1.0 - b) * f(i1, j0) + b * f(i1, j1))
+    }
+
+    fn nearest(&self, w1: f64, w2: f64) -> (usize, usize) {
+        let near = |v: &[f64], x: f64| {
+            (0..v.len())
+                .min_by(|&a, &b| (v[a] - x).abs().total_cmp(&(v[b] - x).abs()))
+                .unwrap_or(0)
+        };
+        (near(&self.w1_values, w1), near(&self.w2_values, w2))
+    }
+}
+
+/// The two grid indices around `x` and the weight of the upper one.
+fn bracket(v: &[f64], x: f64) -> (usize, usize, f64) {
+    if v.len() == 1 || x <= v[0] {
+        return (0, 0, 0.0);
+    }
+    for k in 0..v.len() - 1 {
+        if x <= v[k + 1] {
+            return (k, k + 1, (x - v[k]) / (v[k + 1] - v[k]));
+        }
+    }
+    (v.len() - 1, v.len() - 1, 0.0)
+}
+
+/// What one replay found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Replay {
+    /// Epochs trained, as a fraction of the full grid's (one run per point).
+    pub epoch_fraction: f64,
+    /// Grid best mean minus the true value of the answer.
+    pub regret: f64,
+    /// The answer's nearest grid point is the grid's best.
+    pub found_best: bool,
+    /// The answer's true value is within 5% of the grid's best mean.
+    pub within_5pct: bool,
+}
+
+fn judge(rec: &Recording, epochs: u64, truth: f64, near: (usize, usize)) -> Replay {
+    let (best_point, best) = rec.best();
+    Replay {
+        epoch_fraction: epochs as f64 / rec.grid_epochs() as f64,
+        regret: best - truth,
+        found_best: near == best_point,
+        within_5pct: truth >= best - 0.05 * best.abs(),
+    }
+}
+
+/// Successive halving settings of a replay.
+#[derive(Debug, Clone, Copy)]
+pub struct AshaSetup {
+    /// First rung, epochs.
+    pub min_epochs: u32,
+    /// Reduction factor.
+    pub reduction: u32,
+    /// Simulated workers (one cell each at a time).
+    pub workers: usize,
+}
+
+/// The rungs successive halving uses on this recording, or why it cannot.
+pub fn asha_rungs(rec: &Recording, s: &AshaSetup) -> Result<Vec<u32>, String> {
+    let mut rungs = Vec::new();
+    let mut r = u64::from(s.min_epochs.max(1));
+    while r < u64::from(rec.epochs) {
+        rungs.push(r as u32);
+        r *= u64::from(s.reduction.max(2));
+    }
+    let have = rec.common_eval_epochs();
+    if let Some(missing) = rungs.iter().find(|r| !have.contains(r)) {
+        return Err(format!(
+            "rung at epoch {missing} has no recorded evaluation in every run; recorded: {have:?}"
+        ));
+    }
+    rungs.push(rec.epochs);
+    Ok(rungs)
+}
+
+/// One ASHA replay with `seed`.
+pub fn replay_asha(rec: &Recording, s: &AshaSetup, seed: u64) -> Result<Replay, String> {
+    let rungs = asha_rungs(rec, s)?;
+    let mut rng = StdRng::seed_from_u64(seed);
+    struct Sim<'a> {
+        point: (usize, usize),
+        run: &'a RecordedRun,
+        trained: u32,
+        target_rung: usize,
+        scores: Vec<f64>,
+        standing: Standing,
+    }
+    let mut cells: Vec<Sim> = Vec::new();
+    for i in 0..rec.w1_values.len() {
+        for j in 0..rec.w2_values.len() {
+            let p = rec.point(i, j).ok_or("unvalidated recording")?;
+            let run = &p.runs[rng.random_range(0..p.runs.len())];
+            cells.push(Sim {
+                point: (i, j),
+                run,
+                trained: 0,
+                target_rung: 0,
+                scores: vec![],
+                standing: Standing::Training,
+            });
+        }
+    }
+    let mut queue: VecDeque<usize> = {
+        let mut order: Vec<usize> = (0..cells.len()).collect();
+        order.shuffle(&mut rng);
+        order.into()
+    };
+    // (finish time, cell) per busy worker; workers run at the same speed, with a random
+    // jitter so that arrivals interleave as on a real cluster.
+    let mut busy: Vec<(f64, usize)> = Vec::new();
+    let mut now = 0.0;
+    let mut epochs_used = 0u64;
+    loop {
+        while busy.len() < s.workers.max(1) {
+            let Some(c) = queue.pop_front() else { break };
+            let target = rungs[cells[c].target_rung];
+            let work = f64::from(target - cells[c].trained);
+            busy.push((now + work * rng.random_range(0.8..1.25), c));
+        }
+        let Some(k) = (0..busy.len()).min_by(|&a, &b| busy[a].0.total_cmp(&busy[b].0)) else {
+            break;
+        };
+        let (t, c) = busy.swap_remove(k);
+        now = t;
+        let target = rungs[cells[c].target_rung];
+        epochs_used += u64::from(target - cells[c].trained);
+        cells[c].trained = target;
+        if cells[c].target_rung + 1 == rungs.len() {
+            cells[c].standing = Standing::Closed;
+        } else {
+            let score = *cells[c].run.evals.get(&target).ok_or("missing evaluation")?;
+            cells[c].scores.push(score);
+            cells[c].standing = Standing::Paused;
+        }
+        let view: Vec<AshaCell> = cells
+            .iter()
+            .enumerate()
+            .map(|(n, x)| AshaCell {
+                cell: CellId(n as i64),
+                scores: x.scores.clone(),
+                standing: x.standing,
+            })
+            .collect();
+        for d in asha::decide(&view, rungs.len(), s.reduction) {
+            let n = d.cell.0 as usize;
+            if d.continued {
+                cells[n].target_rung = d.rung + 1;
+                cells[n].standing = Standing::Training;
+                // As in the coordinator, a continued cell goes to the back of the queue's
+                // order by id; deeper cells are few, so this costs them little.
+                queue.push_back(n);
+            } else {
+                cells[n].standing = Standing::Closed;
+            }
+        }
+    }
+    let answer = cells
+        .iter()
+        .filter(|x| x.trained == rec.epochs)
+        .max_by(|a, b| a.run.score.total_cmp(&b.run.score))
+        .ok_or("no cell reached the full budget")?;
+    let (i, j) = answer.point;
+    Ok(judge(rec, epochs_used, rec.mean(i, j), answer.point))
+}
+
+/// Evolutionary-search settings of a replay.
+#[derive(Debug, Clone, Copy)]
+pub struct CmaesSetup {
+    /// Candidates per generation.
+    pub population: usize,
+    /// Initial step, fraction of each axis' range.
+    pub sigma: f64,
+    /// Epoch budget as a fraction of the grid's.
+    pub budget_fraction: f64,
+}
+
+/// One CMA-ES replay with `seed`.
+pub fn replay_cmaes(rec: &Recording, s: &CmaesSetup, seed: u64) -> Result<Replay, String> {
+    let per_generation = s.population as u64 * u64::from(rec.epochs);
+    let generations = ((s.budget_fraction * rec.grid_epochs() as f64) as u64 / per_generation.max(1)) as u32;
+    let params = EvolutionParams {
+        bounds: Bounds {
+            lo: [rec.w1_values[0], rec.w2_values[0]],
+            hi: [*rec.w1_values.last().unwrap_or(&0.0), *rec.w2_values.last().unwrap_or(&0.0)],
+        },
+        population: s.population,
+        sigma: s.sigma,
+        generations,
+        seed,
+    };
+    let mut rng = StdRng::seed_from_u64(seed ^ 0x5eed);
+    let mut history: Vec<Vec<f64>> = Vec::new();
+    let mut best: Option<([f64; 2], f64)> = None;
+    while let NextStep::Generation(candidates) = evolution::next_step(&params, &history)? {
+        let mut scores = Vec::new();
+        for x in candidates {
+            let mut draw = |i: usize, j: usize| {
+                let p = rec.point(i, j).expect("validated");
+                p.runs[rng.random_range(0..p.runs.len())].score
+            };
+            let observed = rec.interpolate(x[0], x[1], &mut draw);
+            if best.is_none_or(|b| observed > b.1) {
+                best = Some((x, observed));
+            }
+            scores.push(observed);
+        }
+        history.push(scores);
+    }
+    let (x, _) = best.ok_or("the budget pays for no generation")?;
+    let truth = rec.interpolate(x[0], x[1], &mut |i, j| rec.mean(i, j));
+    let epochs = history.len() as u64 * per_generation;
+    Ok(judge(rec, epochs, truth, rec.nearest(x[0], x[1])))
+}
+
+/// Replays summarised.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Summary {
+    /// Replays.
+    pub replays: usize,
+    /// Mean fraction of the grid's epochs used.
+    pub epoch_fraction: f64,
+    /// Mean regret.
+    pub mean_regret: f64,
+    /// Largest regret.
+    pub max_regret: f64,
+    /// Fraction of replays that found the grid's best point.
+    pub p_best: f64,
+    /// Fraction of replays within 5% of the grid's best mean.
+    pub p_within_5pct: f64,
+}
+
+/// Summarises replays.
+pub fn summarise(r: &[Replay]) -> Summary {
+    let n = r.len().max(1) as f64;
+    Summary {
+        replays: r.len(),
+        epoch_fraction: r.iter().map(|x| x.epoch_fraction).sum::<f64>() / n,
+        mean_regret: r.iter().map(|x| x.regret).sum::<f64>() / n,
+        max_regret: r.iter().map(|x| x.regret).fold(0.0, f64::max),
+        p_best: r.iter().filter(|x| x.found_best).count() as f64 / n,
+        p_within_5pct: r.iter().filter(|x| x.within_5pct).count() as f64 / n,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 4 x 7 grid with a smooth score field (best at w1 12, w2 -6) and three noisy
+    /// replicates per point, evaluated every 10 epochs on the way to 90 (a learning curve
+    /// that rises towards the final score).
+    fn synthetic(noise: f64) -> Recording {
+        let w1: Vec<f64> = vec![2.0, 5.33, 8.67, 12.0];
+        let w2: Vec<f64> = (0..7).map(|k| -10.0 + 4.0 / 3.0 * k as f64).collect();
+        let mut rng = StdRng::seed_from_u64(1);
+        let mut points = Vec::new();
+        for (i, a) in w1.iter().enumerate() {
+            for (j, b) in w2.iter().enumerate() {
+                let truth = 0.8 - ((a - 12.0) / 10.0).powi(2) - ((b + 6.0) / 6.0).powi(2);
+                let runs = (0..3)
+                    .map(|r| {
+                        let score = truth + noise * rng.random_range(-1.0..1.0);
+                        let evals = (1..=9)
+                            .map(|k| {
+                                let e = 10 * k;
+                                (e, score * f64::from(e) / 90.0 + noise * rng.random_range(-0.5..0.5))
+                            })
+                            .collect();
+                        RecordedRun { seed: r, score, evals }
+                    })
+                    .collect();
+                points.push(RecordedPoint { w1_index: i, w2_index: j, runs });
+            }
+        }
+        Recording {
+            source: "synthetic".into(),
+            terrain: "flat".into(),
+            epochs: 90,
+            w1_values: w1,
+            w2_values: w2,
+            points,
+        }
+    }
+
+    #[test]
+    fn asha_spends_less_than_the_grid_and_finds_a_good_point() {
+        let rec = synthetic(0.02);
+        rec.validate().unwrap();
+        let s = AshaSetup { min_epochs: 10, reduction: 3, workers: 4 };
+        assert_eq!(asha_rungs(&rec, &s).unwrap(), vec![10, 30, 90]);
+        let runs: Vec<Replay> = (0..50).map(|k| replay_asha(&rec, &s, k).unwrap()).collect();
+        let sum = summarise(&runs);
+        assert!(sum.epoch_fraction < 0.5, "{sum:?}");
+        assert!(sum.p_within_5pct > 0.8, "{sum:?}");
+        // A replay is a function of its seed.
+        assert_eq!(replay_asha(&rec, &s, 3).unwrap(), runs[3]);
+    }
+
+    #[test]
+    fn cmaes_uses_its_budget_and_closes_in() {
+        let rec = synthetic(0.02);
+        // A third of a 4 x 7 grid pays for one generation of six: the budget is respected.
+        let third = CmaesSetup { population: 6, sigma: 0.3, budget_fraction: 1.0 / 3.0 };
+        let r = replay_cmaes(&rec, &third, 0).unwrap();
+        assert!((r.epoch_fraction - 6.0 / 28.0).abs() < 1e-9, "{r:?}");
+        // The grid's budget in generations of four: the search closes in on the best.
+        let full = CmaesSetup { population: 4, sigma: 0.3, budget_fraction: 1.0 };
+        let runs: Vec<Replay> = (0..30).map(|k| replay_cmaes(&rec, &full, k).unwrap()).collect();
+        let sum = summarise(&runs);
+        assert!(sum.epoch_fraction <= 1.0 + 1e-9, "{sum:?}");
+        assert!(sum.p_within_5pct > 0.5 && sum.mean_regret < 0.05, "{sum:?}");
+    }
+
+    #[test]
+    fn interpolation_hits_grid_points_and_rungs_need_evaluations() {
+        let rec = synthetic(0.0);
+        let (p, best) = rec.best();
+        let at = rec.interpolate(12.0, rec.w2_values[p.1], &mut |i, j| rec.mean(i, j));
+        assert!((at - best).abs() < 1e-12);
+        let mid = rec.interpolate(10.335, rec.w2_values[p.1], &mut |i, j| rec.mean(i, j));
+        assert!((mid - (rec.mean(2, p.1) + rec.mean(3, p.1)) / 2.0).abs() < 1e-9);
+        let bad = AshaSetup { min_epochs: 15, reduction: 3, workers: 2 };
+        assert!(asha_rungs(&rec, &bad).unwrap_err().contains("epoch 15"));
+        let mut holes = rec.clone();
+        holes.points.pop();
+        assert!(holes.validate().unwrap_err().contains("no scored run"));
+    }
+}
