@@ -72,6 +72,13 @@ pub fn failed_fitness(generation_scores: &[Option<f64>]) -> Vec<f64> {
     generation_scores.iter().map(|s| s.unwrap_or(floor)).collect()
 }
 
+/// The fitness of a candidate that reached rung `depth` (0 = the first) of successive
+/// halving with `score` there: deeper rungs rank above shallower ones whatever the scores
+/// (CMA-ES uses only the ranking), scores rank within a rung.
+pub fn halving_fitness(depth: usize, score: f64) -> f64 {
+    10.0 * depth as f64 + score.clamp(-4.0, 4.0)
+}
+
 /// The next step of the search after `history` (one score per candidate of each finished
 /// generation, in candidate order). Errors only on parameters CMA-ES refuses.
 pub fn next_step(p: &EvolutionParams, history: &[Vec<f64>]) -> Result<NextStep, String> {

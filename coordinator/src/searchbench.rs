@@ -311,12 +311,27 @@ pub struct CmaesSetup {
     pub sigma: f64,
     /// Epoch budget as a fraction of the grid's.
     pub budget_fraction: f64,
+    /// Successive halving inside each generation: (first rung, reduction), as the
+    /// coordinator's `method = "cmaes"` with `min_epochs`.
+    pub halving: Option<(u32, u32)>,
 }
 
 /// One CMA-ES replay with `seed`.
 pub fn replay_cmaes(rec: &Recording, s: &CmaesSetup, seed: u64) -> Result<Replay, String> {
-    let per_generation = s.population as u64 * u64::from(rec.epochs);
-    let generations = ((s.budget_fraction * rec.grid_epochs() as f64) as u64 / per_generation.max(1)) as u32;
+    let (rungs, reduction) = match s.halving {
+        Some((min_epochs, reduction)) => {
+            let setup = AshaSetup {
+                min_epochs,
+                reduction,
+                workers: 1,
+            };
+            (asha_rungs(rec, &setup)?, reduction)
+        }
+        None => (vec![rec.epochs], 2),
+    };
+    let per_generation = gaitsweep_core::spec::halving_cost(s.population as u32, &rungs, reduction);
+    let generations =
+        ((s.budget_fraction * rec.grid_epochs() as f64) as u64 / per_generation.max(1)) as u32;
     let params = EvolutionParams {
         bounds: Bounds {
             lo: [rec.w1_values[0], rec.w2_values[0]],
@@ -330,20 +345,55 @@ pub fn replay_cmaes(rec: &Recording, s: &CmaesSetup, seed: u64) -> Result<Replay
     let mut rng = StdRng::seed_from_u64(seed ^ 0x5eed);
     let mut history: Vec<Vec<f64>> = Vec::new();
     let mut best: Option<([f64; 2], f64)> = None;
+    let last = rungs.len() - 1;
     while let NextStep::Generation(candidates) = evolution::next_step(&params, &history)? {
-        let mut scores = Vec::new();
-        for x in candidates {
-            let mut draw = |i: usize, j: usize| {
-                let p = rec.point(i, j).expect("validated");
-                p.runs[rng.random_range(0..p.runs.len())].score
-            };
-            let observed = rec.interpolate(x[0], x[1], &mut draw);
-            if best.is_none_or(|b| observed > b.1) {
-                best = Some((x, observed));
+        // One replicate drawn per surrounding grid point and candidate: its rung
+        // evaluations and final score are that candidate's run.
+        let runs: Vec<Vec<f64>> = candidates
+            .iter()
+            .map(|x| {
+                let mut picks: BTreeMap<(usize, usize), usize> = BTreeMap::new();
+                rungs
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &r)| {
+                        rec.interpolate(x[0], x[1], &mut |i, j| {
+                            let p = rec.point(i, j).expect("validated");
+                            let n = *picks
+                                .entry((i, j))
+                                .or_insert_with(|| rng.random_range(0..p.runs.len()));
+                            if k == last {
+                                p.runs[n].score
+                            } else {
+                                p.runs[n].evals[&r]
+                            }
+                        })
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut fitness = vec![0.0; candidates.len()];
+        let mut alive: Vec<usize> = (0..candidates.len()).collect();
+        for k in 0..last {
+            alive.sort_by(|&a, &b| runs[b][k].total_cmp(&runs[a][k]).then(a.cmp(&b)));
+            let keep = (alive.len() / reduction.max(2) as usize).max(1);
+            for &c in &alive[keep..] {
+                fitness[c] = evolution::halving_fitness(k, runs[c][k]);
             }
-            scores.push(observed);
+            alive.truncate(keep);
         }
-        history.push(scores);
+        for &c in &alive {
+            let v = runs[c][last];
+            fitness[c] = if s.halving.is_some() {
+                evolution::halving_fitness(last, v)
+            } else {
+                v
+            };
+            if best.is_none_or(|b| v > b.1) {
+                best = Some((candidates[c], v));
+            }
+        }
+        history.push(fitness);
     }
     let (x, _) = best.ok_or("the budget pays for no generation")?;
     let truth = rec.interpolate(x[0], x[1], &mut |i, j| rec.mean(i, j));
@@ -439,15 +489,36 @@ mod tests {
     fn cmaes_uses_its_budget_and_closes_in() {
         let rec = synthetic(0.02);
         // A third of a 4 x 7 grid pays for one generation of six: the budget is respected.
-        let third = CmaesSetup { population: 6, sigma: 0.3, budget_fraction: 1.0 / 3.0 };
+        let third = CmaesSetup {
+            population: 6,
+            sigma: 0.3,
+            budget_fraction: 1.0 / 3.0,
+            halving: None,
+        };
         let r = replay_cmaes(&rec, &third, 0).unwrap();
         assert!((r.epoch_fraction - 6.0 / 28.0).abs() < 1e-9, "{r:?}");
         // The grid's budget in generations of four: the search closes in on the best.
-        let full = CmaesSetup { population: 4, sigma: 0.3, budget_fraction: 1.0 };
+        let full = CmaesSetup {
+            population: 4,
+            sigma: 0.3,
+            budget_fraction: 1.0,
+            halving: None,
+        };
         let runs: Vec<Replay> = (0..30).map(|k| replay_cmaes(&rec, &full, k).unwrap()).collect();
         let sum = summarise(&runs);
         assert!(sum.epoch_fraction <= 1.0 + 1e-9, "{sum:?}");
         assert!(sum.p_within_5pct > 0.5 && sum.mean_regret < 0.05, "{sum:?}");
+        // Successive halving inside generations buys more generations from a third.
+        let halved = CmaesSetup {
+            population: 6,
+            sigma: 0.3,
+            budget_fraction: 1.0 / 3.0,
+            halving: Some((10, 3)),
+        };
+        let runs: Vec<Replay> = (0..30).map(|k| replay_cmaes(&rec, &halved, k).unwrap()).collect();
+        let sum = summarise(&runs);
+        // 6x10 + 2x20 + 1x60 = 160 epochs a generation: 5 of them in 840.
+        assert!((sum.epoch_fraction - 5.0 * 160.0 / 2520.0).abs() < 1e-9, "{sum:?}");
     }
 
     #[test]

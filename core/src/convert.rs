@@ -110,12 +110,12 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
                 Search::Cmaes { .. } => "cmaes".into(),
             },
             search_min_epochs: match s.search {
-                Search::Asha { min_epochs, .. } => min_epochs,
-                _ => 0,
+                Search::Asha { min_epochs, .. } | Search::Cmaes { min_epochs, .. } => min_epochs,
+                Search::Grid => 0,
             },
             search_reduction: match s.search {
-                Search::Asha { reduction, .. } => reduction,
-                _ => 0,
+                Search::Asha { reduction, .. } | Search::Cmaes { reduction, .. } => reduction,
+                Search::Grid => 0,
             },
             search_population: match s.search {
                 Search::Cmaes { population, .. } => population,
@@ -125,19 +125,7 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
                 Search::Cmaes { sigma, .. } => sigma,
                 _ => 0.0,
             },
-            search_budget_epochs: match s.search {
-                Search::Cmaes {
-                    population,
-                    generations,
-                    ..
-                } => {
-                    u64::from(generations)
-                        * u64::from(population)
-                        * u64::from(s.replicates.max(1))
-                        * u64::from(s.epochs)
-                }
-                _ => 0,
-            },
+            search_budget_epochs: s.budget_epochs().unwrap_or(0),
         }
     }
 }
@@ -335,5 +323,86 @@ impl From<&RungDecisionRecord> for pb::RungDecision {
             score: d.score,
             continued: d.continued,
         }
+    }
+}
+
+/// The cells' grid points (terrain, w1, w2 index) summarised over their replicates, in
+/// order of first appearance: mean, sd and 95% CI of the score and of every component.
+pub fn point_results(cells: &[pb::Cell]) -> Vec<pb::PointResult> {
+    let mut order: Vec<(u32, u32, u32)> = Vec::new();
+    let mut groups: std::collections::BTreeMap<(u32, u32, u32), Vec<&pb::Cell>> =
+        std::collections::BTreeMap::new();
+    for c in cells {
+        let key = (c.terrain_index, c.w1_index, c.w2_index);
+        if !groups.contains_key(&key) {
+            order.push(key);
+        }
+        groups.entry(key).or_default().push(c);
+    }
+    order
+        .into_iter()
+        .map(|key| {
+            let group = &groups[&key];
+            let scored: Vec<&pb::GaitScore> = group.iter().filter_map(|c| c.score.as_ref()).collect();
+            let stat = |f: fn(&pb::GaitScore) -> f64| {
+                let v: Vec<f64> = scored.iter().map(|g| f(g)).collect();
+                crate::stats::Summary::of(&v).map(|s| pb::Stat {
+                    mean: s.mean,
+                    sd: s.sd,
+                    ci95: s.ci95,
+                    n: s.n as u32,
+                })
+            };
+            pb::PointResult {
+                terrain_index: key.0,
+                w1_index: key.1,
+                w2_index: key.2,
+                w1: group[0].w1,
+                w2: group[0].w2,
+                replicates: group.len() as u32,
+                scored: scored.len() as u32,
+                score: stat(|g| g.score),
+                fall_rate: stat(|g| g.fall_rate),
+                mean_vel_error: stat(|g| g.mean_vel_error),
+                track: stat(|g| g.track),
+                effort: stat(|g| g.effort),
+                tilt: stat(|g| g.tilt),
+                progress: stat(|g| g.progress),
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod point_tests {
+    use super::*;
+
+    #[test]
+    fn points_summarise_their_replicates() {
+        let cell = |w1_index: u32, score: Option<f64>| pb::Cell {
+            w1_index,
+            w1: f64::from(w1_index),
+            score: score.map(|s| pb::GaitScore {
+                score: s,
+                fall_rate: s / 10.0,
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        let cells = [
+            cell(0, Some(0.4)),
+            cell(1, Some(0.9)),
+            cell(0, Some(0.6)),
+            cell(0, None),
+        ];
+        let p = point_results(&cells);
+        assert_eq!(p.len(), 2);
+        assert_eq!((p[0].w1_index, p[0].replicates, p[0].scored), (0, 3, 2));
+        let s = p[0].score.unwrap();
+        assert!((s.mean - 0.5).abs() < 1e-12 && s.n == 2);
+        // sd of (0.4, 0.6) is 0.1414; t(0.975, 1) = 12.706: ci = 12.706 * 0.1414 / sqrt(2).
+        assert!((s.ci95 - 12.706 * 0.1).abs() < 1e-9, "{s:?}");
+        assert!((p[0].fall_rate.unwrap().mean - 0.05).abs() < 1e-12);
+        assert_eq!((p[1].scored, p[1].score.unwrap().ci95), (1, 0.0));
     }
 }

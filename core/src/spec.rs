@@ -112,7 +112,41 @@ pub enum Search {
         sigma: f64,
         /// Generations the epoch budget pays for.
         generations: u32,
+        /// Successive halving inside each generation: epochs of the first rung (0: none,
+        /// every candidate trains to the end).
+        #[serde(default)]
+        min_epochs: u32,
+        /// Its reduction factor (with `min_epochs`).
+        #[serde(default)]
+        reduction: u32,
     },
+}
+
+/// Rungs of successive halving: `min_epochs * reduction^k` below `epochs`, then `epochs`.
+fn halving_rungs(min_epochs: u32, reduction: u32, epochs: u32) -> Vec<u32> {
+    let mut out = Vec::new();
+    let mut r = u64::from(min_epochs.max(1));
+    while r < u64::from(epochs) {
+        out.push(r as u32);
+        r *= u64::from(reduction.max(2));
+    }
+    out.push(epochs);
+    out
+}
+
+/// Epochs synchronous successive halving spends on `n` cells over `rungs` (each rung keeps
+/// the top `max(1, floor(n / reduction))`): what one generation of an evolutionary search
+/// with successive halving is budgeted at.
+pub fn halving_cost(n: u32, rungs: &[u32], reduction: u32) -> u64 {
+    let (mut alive, mut prev, mut cost) = (u64::from(n), 0u64, 0u64);
+    for (k, &r) in rungs.iter().enumerate() {
+        cost += alive * (u64::from(r) - prev);
+        prev = u64::from(r);
+        if k + 1 < rungs.len() {
+            alive = (alive / u64::from(reduction.max(2))).max(1);
+        }
+    }
+    cost
 }
 
 /// Default CMA-ES population in two dimensions (4 + floor(3 ln 2), Hansen 2016).
@@ -415,9 +449,12 @@ impl SweepSpec {
                 );
             }
         }
-        if matches!(search, Search::Asha { .. }) && self.seeds.unwrap_or(1) > 1 {
+        if (matches!(search, Search::Asha { .. })
+            || matches!(search, Search::Cmaes { min_epochs, .. } if min_epochs > 0))
+            && self.seeds.unwrap_or(1) > 1
+        {
             problems.push(
-                "search.method asha ranks single training runs: use seeds = 1 with it".into(),
+                "successive halving (search.method asha, or cmaes with min_epochs) ranks single training runs: use seeds = 1 with it".into(),
             );
         }
         if replicates == 0 || replicates > MAX_REPLICATES {
@@ -478,11 +515,33 @@ impl SweepSpec {
             return Search::Grid;
         };
         let method = s.method.trim();
-        if method != "asha" && (s.min_epochs.is_some() || s.reduction.is_some()) {
+        if !matches!(method, "asha" | "cmaes") && (s.min_epochs.is_some() || s.reduction.is_some())
+        {
             problems.push(
-                "search.min_epochs and search.reduction belong to method = \"asha\"".into(),
+                "search.min_epochs and search.reduction belong to method = \"asha\" or \"cmaes\""
+                    .into(),
             );
         }
+        // Successive halving (method asha, or inside each generation of cmaes when
+        // min_epochs or reduction is given).
+        let halving = |problems: &mut Vec<String>| -> (u32, u32) {
+            let reduction = s.reduction.unwrap_or(DEFAULT_REDUCTION);
+            if reduction < 2 {
+                problems.push(format!(
+                    "search.reduction is {reduction}: use 2 or more (each rung keeps the top 1/reduction)"
+                ));
+            }
+            let min_epochs = s
+                .min_epochs
+                .unwrap_or_else(|| (epochs / reduction.max(2).pow(3)).max(1));
+            if min_epochs == 0 || (epochs > 0 && min_epochs >= epochs) {
+                problems.push(format!(
+                    "search.min_epochs is {min_epochs}: use 1 to {} (less than epochs, so there is a rung before the end)",
+                    epochs.saturating_sub(1)
+                ));
+            }
+            (min_epochs, reduction)
+        };
         if method != "cmaes"
             && (s.population.is_some() || s.sigma.is_some() || s.budget_epochs.is_some())
         {
@@ -506,37 +565,33 @@ impl SweepSpec {
                         "search.sigma is {sigma}: use a step size above 0 and at most 1 (a fraction of each axis' range)"
                     ));
                 }
-                let per_generation =
-                    u64::from(population.max(1)) * u64::from(replicates) * u64::from(epochs);
+                let (min_epochs, reduction) = if s.min_epochs.is_some() || s.reduction.is_some() {
+                    halving(problems)
+                } else {
+                    (0, 0)
+                };
+                let per_generation = if min_epochs > 0 {
+                    halving_cost(population, &halving_rungs(min_epochs, reduction, epochs), reduction)
+                } else {
+                    u64::from(population.max(1)) * u64::from(epochs)
+                } * u64::from(replicates);
                 let budget = s.budget_epochs.unwrap_or(grid_epochs / 3);
                 let generations = budget / per_generation.max(1);
                 if epochs > 0 && generations == 0 {
                     problems.push(format!(
-                        "search.budget_epochs is {budget}: one generation of {population} candidates x {replicates} replicates x {epochs} epochs needs {per_generation}"
+                        "search.budget_epochs is {budget}: one generation of {population} candidates x {replicates} replicates needs {per_generation} epochs"
                     ));
                 }
                 Search::Cmaes {
                     population,
                     sigma,
                     generations: generations.min(u64::from(u32::MAX)) as u32,
+                    min_epochs,
+                    reduction,
                 }
             }
             "asha" => {
-                let reduction = s.reduction.unwrap_or(DEFAULT_REDUCTION);
-                if reduction < 2 {
-                    problems.push(format!(
-                        "search.reduction is {reduction}: use 2 or more (each rung keeps the top 1/reduction)"
-                    ));
-                }
-                let min_epochs = s
-                    .min_epochs
-                    .unwrap_or_else(|| (epochs / reduction.max(2).pow(3)).max(1));
-                if min_epochs == 0 || (epochs > 0 && min_epochs >= epochs) {
-                    problems.push(format!(
-                        "search.min_epochs is {min_epochs}: use 1 to {} (less than epochs, so there is a rung before the end)",
-                        epochs.saturating_sub(1)
-                    ));
-                }
+                let (min_epochs, reduction) = halving(problems);
                 Search::Asha {
                     min_epochs,
                     reduction,
@@ -598,22 +653,56 @@ impl ResolvedSpec {
     }
 
     /// The epochs at which a cell's training is evaluated and decided on: for the grid
-    /// only the last; for ASHA `min_epochs * reduction^k` below `epochs`, then `epochs`.
+    /// only the last; with successive halving `min_epochs * reduction^k` below `epochs`,
+    /// then `epochs`.
     pub fn rungs(&self) -> Vec<u32> {
-        let mut out = Vec::new();
-        if let Search::Asha {
+        match self.search {
+            Search::Asha {
+                min_epochs,
+                reduction,
+            } => halving_rungs(min_epochs, reduction, self.epochs),
+            Search::Cmaes {
+                min_epochs,
+                reduction,
+                ..
+            } if min_epochs > 0 => halving_rungs(min_epochs, reduction, self.epochs),
+            _ => vec![self.epochs],
+        }
+    }
+
+    /// The epochs an evolutionary search is budgeted at: its generations times what one
+    /// costs (with successive halving inside a generation, its synchronous cost).
+    pub fn budget_epochs(&self) -> Option<u64> {
+        let Search::Cmaes {
+            population,
+            generations,
             min_epochs,
             reduction,
+            ..
         } = self.search
-        {
-            let mut r = u64::from(min_epochs.max(1));
-            while r < u64::from(self.epochs) {
-                out.push(r as u32);
-                r *= u64::from(reduction.max(2));
-            }
+        else {
+            return None;
+        };
+        let per = if min_epochs > 0 {
+            halving_cost(population, &self.rungs(), reduction)
+        } else {
+            u64::from(population) * u64::from(self.epochs)
+        };
+        Some(u64::from(generations) * per * u64::from(self.replicates.max(1)))
+    }
+
+    /// Successive halving's reduction factor, if this spec halves (ASHA, or CMA-ES with
+    /// rungs inside each generation).
+    pub fn halving_reduction(&self) -> Option<u32> {
+        match self.search {
+            Search::Asha { reduction, .. } => Some(reduction),
+            Search::Cmaes {
+                min_epochs,
+                reduction,
+                ..
+            } if min_epochs > 0 => Some(reduction),
+            _ => None,
         }
-        out.push(self.epochs);
-        out
     }
 
     /// The (w1, w2) rectangle an evolutionary search proposes from: each axis' smallest
@@ -803,7 +892,9 @@ mod tests {
             Search::Cmaes {
                 population: DEFAULT_POPULATION,
                 sigma: DEFAULT_SIGMA,
-                generations: 1
+                generations: 1,
+                min_epochs: 0,
+                reduction: 0
             }
         );
         let r = parse("seeds = 2\n[search]\nmethod = \"cmaes\"\npopulation = 4\nsigma = 0.2\nbudget_epochs = 72000\n")
@@ -813,7 +904,9 @@ mod tests {
             Search::Cmaes {
                 population: 4,
                 sigma: 0.2,
-                generations: 3
+                generations: 3,
+                min_epochs: 0,
+                reduction: 0
             }
         );
         let (lo, hi) = r.bounds();
@@ -832,7 +925,28 @@ mod tests {
 
         let err = |extra: &str| parse(extra).unwrap_err().to_string();
         assert!(err("[search]\nmethod = \"cmaes\"\nbudget_epochs = 100\n")
-            .contains("one generation of 6 candidates x 1 replicates x 3000 epochs needs 18000"));
+            .contains("one generation of 6 candidates x 1 replicates needs 18000 epochs"));
+        // Successive halving inside each generation: rungs 100, 300, 900, 2700, 3000; a
+        // generation of 6 costs 6x100 + 2x200 + 1x600 + 1x1800 + 1x300 = 3700 epochs.
+        let h = parse("[search]\nmethod = \"cmaes\"\nmin_epochs = 100\nbudget_epochs = 28000\n").unwrap();
+        assert_eq!(h.rungs(), vec![100, 300, 900, 2700, 3000]);
+        assert_eq!(halving_cost(6, &h.rungs(), 3), 3700);
+        assert_eq!(
+            h.search,
+            Search::Cmaes {
+                population: 6,
+                sigma: DEFAULT_SIGMA,
+                generations: 7,
+                min_epochs: 100,
+                reduction: 3
+            }
+        );
+        assert_eq!(h.budget_epochs(), Some(25900));
+        let back = SweepSpec::from(crate::pb::SweepSpec::from(&h))
+            .resolve_with(ok)
+            .unwrap();
+        assert_eq!(back.search, h.search);
+        assert!(err("seeds = 2\n[search]\nmethod = \"cmaes\"\nmin_epochs = 100\n").contains("use seeds = 1"));
         assert!(err("[search]\nmethod = \"cmaes\"\npopulation = 1\n").contains("search.population is 1"));
         assert!(err("[search]\nmethod = \"cmaes\"\nsigma = 0\n").contains("search.sigma is 0"));
         assert!(err("w2 = { values = [-6.0] }\n[search]\nmethod = \"cmaes\"\n").contains("give w1 and w2 a range"));
@@ -845,6 +959,7 @@ mod tests {
         .to_string();
         assert!(two.contains("searches one terrain"), "{two}");
         assert!(err("[search]\nmethod = \"asha\"\npopulation = 6\n").contains("belong to method = \"cmaes\""));
+        assert!(err("[search]\nmethod = \"grid\"\nmin_epochs = 6\n").contains("belong to method = \"asha\" or \"cmaes\""));
     }
 
     #[test]

@@ -57,6 +57,37 @@ fn ppo_learns_point_mass() {
     );
 }
 
+#[test]
+fn an_annealed_std_follows_its_schedule_and_the_mean_still_learns() {
+    tch::set_num_threads(1);
+    let seed = 7;
+    let params = PpoParams {
+        final_noise_std: 0.2,
+        noise_decay_epochs: 40,
+        ..toy_params()
+    };
+    let ppo = Ppo::new(4, 2, params, Device::Cpu, seed);
+    // Geometric from 0.5 to 0.2: the midpoint is their geometric mean.
+    assert_eq!(ppo.scheduled_noise_std(0), Some(0.5));
+    assert!((ppo.scheduled_noise_std(20).unwrap() - (0.5f64 * 0.2).sqrt()).abs() < 1e-12);
+    assert!((ppo.scheduled_noise_std(40).unwrap() - 0.2).abs() < 1e-12);
+    assert!((ppo.scheduled_noise_std(400).unwrap() - 0.2).abs() < 1e-12);
+    let mut runner = Runner::new(PointMass::new(128, seed), ppo, seed, 0, "toy".into());
+    for epoch in 0..60u32 {
+        let stats = runner.run_epoch().unwrap();
+        // The update does not move an annealed std: after epoch e it is still the value
+        // set before its rollout.
+        let want = (0.5f64.ln() * (1.0 - (f64::from(epoch) / 40.0).min(1.0))
+            + 0.2f64.ln() * (f64::from(epoch) / 40.0).min(1.0))
+        .exp();
+        assert!((stats.update.action_std - want).abs() < 1e-5, "epoch {epoch}: {}", stats.update.action_std);
+    }
+    let after = eval_return(&runner.ppo);
+    assert!(after > -8.0, "point mass not learnt with an annealed std: {after:.2}");
+    // The learned std (rsl_rl) is the default.
+    assert_eq!(Ppo::new(4, 2, toy_params(), Device::Cpu, 1).scheduled_noise_std(3), None);
+}
+
 /// Wraps the toy and poisons one observation at a given step.
 struct Poisoned {
     inner: PointMass,

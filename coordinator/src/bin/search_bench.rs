@@ -109,6 +109,13 @@ async fn main() -> anyhow::Result<()> {
                 population,
                 sigma,
                 budget_fraction,
+                halving: None,
+            };
+            // The same search with successive halving inside each generation, at ASHA's
+            // rungs.
+            let halved = CmaesSetup {
+                halving: Some((min_epochs, reduction)),
+                ..cmaes
             };
             let (best_point, best) = rec.best();
             let runs: usize = rec.points.iter().map(|p| p.runs.len()).sum();
@@ -125,12 +132,14 @@ async fn main() -> anyhow::Result<()> {
             );
             let mut a = Vec::new();
             let mut c = Vec::new();
+            let mut h = Vec::new();
             for seed in 0..replays {
                 a.push(searchbench::replay_asha(&rec, &asha, seed).map_err(anyhow::Error::msg)?);
                 c.push(searchbench::replay_cmaes(&rec, &cmaes, seed).map_err(anyhow::Error::msg)?);
+                h.push(searchbench::replay_cmaes(&rec, &halved, seed).map_err(anyhow::Error::msg)?);
             }
             println!(
-                "{:<44} {:>8} {:>8} {:>12} {:>10} {:>12} {:>10}",
+                "{:<52} {:>8} {:>8} {:>12} {:>10} {:>12} {:>10}",
                 "strategy", "replays", "epochs", "mean regret", "max regret", "P(best)", "P(<= 5%)"
             );
             let grid = Summary {
@@ -151,9 +160,13 @@ async fn main() -> anyhow::Result<()> {
                     format!("cma-es pop {population}, sigma {sigma}, budget {budget_fraction:.3}"),
                     searchbench::summarise(&c),
                 ),
+                (
+                    format!("cma-es + halving at asha's rungs, budget {budget_fraction:.3}"),
+                    searchbench::summarise(&h),
+                ),
             ] {
                 println!(
-                    "{name:<44} {:>8} {:>7.1}% {:>12.4} {:>10.4} {:>11.1}% {:>9.1}%",
+                    "{name:<52} {:>8} {:>7.1}% {:>12.4} {:>10.4} {:>11.1}% {:>9.1}%",
                     s.replays,
                     100.0 * s.epoch_fraction,
                     s.mean_regret,

@@ -68,19 +68,10 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
             let epochs_done = done.get(&s.id.0).copied().unwrap_or(0);
             // An evolutionary search's cells appear generation by generation: its total is
             // the budget.
-            let epochs_total = match s.spec.search {
-                gaitsweep_core::Search::Cmaes {
-                    population,
-                    generations,
-                    ..
-                } => {
-                    i64::from(population)
-                        * i64::from(generations)
-                        * i64::from(s.spec.replicates.max(1))
-                        * i64::from(s.spec.epochs)
-                }
-                _ => i64::from(s.cells_total) * i64::from(s.spec.epochs),
-            };
+            let epochs_total = s.spec.budget_epochs().map_or_else(
+                || i64::from(s.cells_total) * i64::from(s.spec.epochs),
+                |b| b as i64,
+            );
             let running = s.state == gaitsweep_core::SweepState::Running;
             let secs = (now - s.created_unix_ms).max(1) as f64 / 1000.0;
             let rate = (running && epochs_done > 0).then(|| epochs_done as f64 / secs);

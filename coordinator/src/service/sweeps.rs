@@ -62,8 +62,10 @@ impl<S: Store> SweepService for SweepApi<S> {
             .store
             .cells(SweepId(req.into_inner().sweep_id))
             .await?;
+        let cells: Vec<pb::Cell> = cells.iter().map(Into::into).collect();
         Ok(Response::new(pb::ListCellsResponse {
-            cells: cells.iter().map(Into::into).collect(),
+            points: gaitsweep_core::convert::point_results(&cells),
+            cells,
         }))
     }
 

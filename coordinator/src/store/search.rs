@@ -75,6 +75,7 @@ pub(super) async fn rung_result(
     .execute(&mut **tx)
     .await?;
     let decisions = apply_asha(tx, sweep, now_ms).await?;
+    apply_evolution(tx, sweep).await?;
     let cell = cell_tx(tx, cell_id).await?;
     let finished = finish_if_done(tx, sweep, now_ms).await?;
     Ok(ResultOutcome {
@@ -99,12 +100,15 @@ pub(super) async fn apply_asha(
         .fetch_one(&mut **tx)
         .await?;
     let spec = spec_of(&spec_json)?;
-    let Search::Asha { reduction, .. } = spec.search else {
+    let Some(reduction) = spec.halving_reduction() else {
         return Ok(vec![]);
     };
     let rungs = spec.rungs();
-    let states: Vec<(i64, String)> =
-        sqlx::query_as("SELECT id, state FROM cells WHERE sweep_id = ? ORDER BY id")
+    // An evolutionary search halves inside each generation (w1_index): its candidates
+    // compete with each other, not with earlier generations.
+    let generations = matches!(spec.search, Search::Cmaes { .. });
+    let states: Vec<(i64, String, i64)> =
+        sqlx::query_as("SELECT id, state, w1_index FROM cells WHERE sweep_id = ? ORDER BY id")
             .bind(sweep.0)
             .fetch_all(&mut **tx)
             .await?;
@@ -119,9 +123,9 @@ pub(super) async fn apply_asha(
     for (c, e, v) in evals {
         at.insert((c, e), v);
     }
-    let cells: Vec<asha::AshaCell> = states
-        .iter()
-        .map(|(id, state)| {
+    let mut groups: BTreeMap<i64, Vec<asha::AshaCell>> = BTreeMap::new();
+    for (id, state, generation) in &states {
+        let cell = {
             let scores = rungs[..rungs.len() - 1]
                 .iter()
                 .map_while(|r| at.get(&(*id, i64::from(*r))).copied())
@@ -136,10 +140,18 @@ pub(super) async fn apply_asha(
                 scores,
                 standing,
             }
-        })
+        };
+        groups
+            .entry(if generations { *generation } else { 0 })
+            .or_default()
+            .push(cell);
+    }
+    let due: Vec<asha::Decision> = groups
+        .values()
+        .flat_map(|cells| asha::decide(cells, rungs.len(), reduction))
         .collect();
     let mut out = Vec::new();
-    for d in asha::decide(&cells, rungs.len(), reduction) {
+    for d in due {
         let epoch = rungs[d.rung];
         sqlx::query(
             "INSERT INTO rung_decisions (cell_id, rung, epoch, score, decision, decided_unix_ms) VALUES (?, ?, ?, ?, ?, ?)",
@@ -221,6 +233,7 @@ pub(super) fn evolution_params(spec: &ResolvedSpec) -> Option<EvolutionParams> {
         population,
         sigma,
         generations,
+        ..
     } = spec.search
     else {
         return None;
@@ -259,7 +272,7 @@ pub(super) async fn insert_generation(
         .bind(c.w2)
         .bind(i64::from(c.replicate))
         .bind(c.seed as i64)
-        .bind(i64::from(spec.epochs))
+        .bind(i64::from(spec.rungs()[0]))
         .execute(&mut **tx)
         .await?;
     }
@@ -318,14 +331,48 @@ pub(super) async fn apply_evolution(tx: &mut Tx, sweep: SweepId) -> Result<Optio
             slot.1 += 1;
         }
     }
+    // With successive halving inside generations, a candidate stopped at a rung is ranked
+    // by how far it got, then by its score there.
+    let halted = if spec.halving_reduction().is_some() {
+        let rungs = spec.rungs();
+        let evals: Vec<(i64, i64, i64, f64)> = sqlx::query_as(
+            "SELECT c.w1_index, c.w2_index, e.epoch, e.score FROM evaluations e JOIN cells c ON c.id = e.cell_id \
+             WHERE c.sweep_id = ? AND e.kind = 'rung' ORDER BY e.epoch",
+        )
+        .bind(sweep.0)
+        .fetch_all(&mut **tx)
+        .await?;
+        let mut deepest: BTreeMap<(i64, i64), (usize, f64)> = BTreeMap::new();
+        for (g, k, epoch, score) in evals {
+            if let Some(depth) = rungs.iter().position(|r| i64::from(*r) == epoch) {
+                deepest.insert((g, k), (depth, score));
+            }
+        }
+        Some((rungs.len() - 1, deepest))
+    } else {
+        None
+    };
     let history: Vec<Vec<f64>> = sums
         .iter()
-        .map(|g| {
-            let means: Vec<Option<f64>> = g
+        .enumerate()
+        .map(|(g, cands)| {
+            let values: Vec<Option<f64>> = cands
                 .iter()
-                .map(|(sum, n)| (*n > 0).then(|| sum / f64::from(*n)))
+                .enumerate()
+                .map(|(k, (sum, n))| {
+                    let fin = (*n > 0).then(|| sum / f64::from(*n));
+                    match &halted {
+                        None => fin,
+                        Some((last, deepest)) => match fin {
+                            Some(v) => Some(evolution::halving_fitness(*last, v)),
+                            None => deepest
+                                .get(&(g as i64, k as i64))
+                                .map(|(d, v)| evolution::halving_fitness(*d, *v)),
+                        },
+                    }
+                })
                 .collect();
-            evolution::failed_fitness(&means)
+            evolution::failed_fitness(&values)
         })
         .collect();
     match evolution::next_step(&params, &history).map_err(Error::BadRequest)? {

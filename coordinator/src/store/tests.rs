@@ -619,6 +619,8 @@ async fn the_evolutionary_search_queues_a_generation_when_the_last_one_ends() {
         population: 3,
         sigma: 0.3,
         generations: 2,
+        min_epochs: 0,
+        reduction: 0,
     };
     let sweep = store.create_sweep(&s, 0).await.unwrap();
     let gen0 = store.cells(sweep.id).await.unwrap();
@@ -676,4 +678,57 @@ async fn the_evolutionary_search_queues_a_generation_when_the_last_one_ends() {
         .map(|c| c.w1)
         .fold(f64::MIN, f64::max);
     assert_eq!(best.cell.w1, max_w1);
+}
+
+#[tokio::test]
+async fn cmaes_halves_inside_each_generation() {
+    let (_d, store, w) = setup().await;
+    let mut s = spec(3, 3, vec![TerrainKind::Flat]);
+    s.epochs = 9;
+    s.search = gaitsweep_core::Search::Cmaes {
+        population: 3,
+        sigma: 0.3,
+        generations: 2,
+        min_epochs: 1,
+        reduction: 3,
+    };
+    assert_eq!(s.rungs(), vec![1, 3, 9]);
+    let sweep = store.create_sweep(&s, 0).await.unwrap();
+    let mut now = 1;
+    // Generation 0 at rung 0: the best of three (score = w1) goes on, the others stop.
+    let mut decided = Vec::new();
+    for _ in 0..3 {
+        let (g, out) = train_to_target(&store, &w, 0.0, now).await.unwrap();
+        assert_eq!((g.cell.w1_index, g.cell.target_epochs), (0, 1));
+        decided.extend(out.decisions);
+        now += 1;
+    }
+    assert_eq!(decided.len(), 3);
+    assert_eq!(decided.iter().filter(|d| d.continued).count(), 1);
+    // It trains on through rung 1 to the end; then generation 1 is queued at rung 0.
+    let (g, out) = train_to_target(&store, &w, 0.5, now).await.unwrap();
+    assert_eq!(g.cell.target_epochs, 3);
+    assert_eq!(out.decisions.len(), 1, "alone at rung 1, it goes on");
+    assert_eq!(store.cells(sweep.id).await.unwrap().len(), 3, "generation 0 is still open");
+    let (g, out) = train_to_target(&store, &w, 0.7, now + 1).await.unwrap();
+    assert_eq!((g.cell.target_epochs, out.cell.state), (9, CellState::Done));
+    assert_eq!(out.promotions.len(), 2, "overall and on its terrain");
+    let cells = store.cells(sweep.id).await.unwrap();
+    assert_eq!(cells.len(), 6);
+    assert!(cells[3..]
+        .iter()
+        .all(|c| c.w1_index == 1 && c.state == CellState::Queued && c.target_epochs == 1));
+    // Generation 1 repeats it; the budget's two generations end the sweep.
+    let mut finished = None;
+    while let Some((_, out)) = train_to_target(&store, &w, 0.1, now + 10).await {
+        now += 1;
+        finished = finished.or(out.finished);
+    }
+    let done = finished.expect("the sweep ends after generation 1");
+    assert_eq!((done.cells_done, done.cells_stopped), (2, 4));
+    let trained: i64 = sqlx::query_scalar("SELECT SUM(epochs_done) FROM cells")
+        .fetch_one(store.writer())
+        .await
+        .unwrap();
+    assert_eq!(trained, 2 * (3 + 2 + 6), "each generation: 3x1 + 1x2 + 1x6 epochs");
 }
