@@ -11,6 +11,7 @@ use super::ResultOutcome;
 use crate::evolution::{self, EvolutionParams, NextStep};
 use crate::{asha, Error, Result};
 use gaitsweep_core::records::RungDecisionRecord;
+use gaitsweep_core::spec::CellPlan;
 use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, Search, SweepId};
 use gaitsweep_model::GaitScore;
 use std::collections::BTreeMap;
@@ -248,17 +249,14 @@ pub(super) fn evolution_params(spec: &ResolvedSpec) -> Option<EvolutionParams> {
     })
 }
 
-/// Inserts the cells of an evolutionary search's generation `generation` (queued, trained to
-/// the spec's epochs); returns how many.
-pub(super) async fn insert_generation(
+/// Inserts `cells` into a sweep, queued, each training to `target` epochs first.
+pub(super) async fn insert_cells(
     tx: &mut Tx,
     sweep: SweepId,
-    spec: &ResolvedSpec,
-    generation: u32,
-    candidates: &[[f64; 2]],
-) -> Result<usize> {
-    let cells = spec.candidate_cells(generation, candidates);
-    for c in &cells {
+    cells: &[CellPlan],
+    target: u32,
+) -> Result<()> {
+    for c in cells {
         sqlx::query(
             "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, replicate, seed, state, target_epochs) \
              VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?)",
@@ -272,11 +270,11 @@ pub(super) async fn insert_generation(
         .bind(c.w2)
         .bind(i64::from(c.replicate))
         .bind(c.seed as i64)
-        .bind(i64::from(spec.rungs()[0]))
+        .bind(i64::from(target))
         .execute(&mut **tx)
         .await?;
     }
-    Ok(cells.len())
+    Ok(())
 }
 
 /// The first generation of an evolutionary search.
@@ -378,7 +376,9 @@ pub(super) async fn apply_evolution(tx: &mut Tx, sweep: SweepId) -> Result<Optio
     match evolution::next_step(&params, &history).map_err(Error::BadRequest)? {
         NextStep::Generation(candidates) => {
             let generation = generations as u32;
-            let n = insert_generation(tx, sweep, &spec, generation, &candidates).await?;
+            let cells = spec.candidate_cells(generation, &candidates);
+            insert_cells(tx, sweep, &cells, spec.rungs()[0]).await?;
+            let n = cells.len();
             tracing::info!(sweep = sweep.0, generation, cells = n, "evolutionary search: next generation queued");
             Ok(Some((generation, n)))
         }

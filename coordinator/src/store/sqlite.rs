@@ -363,34 +363,13 @@ impl Store for SqliteStore {
         .bind(now_ms)
         .fetch_one(&mut *tx)
         .await?;
-        if search::evolution_params(spec).is_some() {
-            let candidates = search::first_generation(spec)?;
-            search::insert_generation(&mut tx, SweepId(id), spec, 0, &candidates).await?;
-        }
-        let first_target = spec.rungs()[0];
-        let grid = if search::evolution_params(spec).is_some() {
-            vec![]
+        // A grid is stored whole; an evolutionary search starts with its first generation.
+        let cells = if search::evolution_params(spec).is_some() {
+            spec.candidate_cells(0, &search::first_generation(spec)?)
         } else {
             spec.cells()
         };
-        for c in grid {
-            sqlx::query(
-                "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, replicate, seed, state, target_epochs) \
-                 VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?)",
-            )
-            .bind(id)
-            .bind(c.terrain_index as i64)
-            .bind(c.terrain.to_string())
-            .bind(c.w1_index as i64)
-            .bind(c.w2_index as i64)
-            .bind(c.w1)
-            .bind(c.w2)
-            .bind(i64::from(c.replicate))
-            .bind(c.seed as i64)
-            .bind(i64::from(first_target))
-            .execute(&mut *tx)
-            .await?;
-        }
+        search::insert_cells(&mut tx, SweepId(id), &cells, spec.rungs()[0]).await?;
         let rec = sweep_tx(&mut tx, SweepId(id)).await?;
         tx.commit().await?;
         Ok(rec)
