@@ -69,7 +69,10 @@ pub fn failed_fitness(generation_scores: &[Option<f64>]) -> Vec<f64> {
         .copied()
         .fold(f64::INFINITY, f64::min);
     let floor = if worst.is_finite() { worst - 1.0 } else { -1.0 };
-    generation_scores.iter().map(|s| s.unwrap_or(floor)).collect()
+    generation_scores
+        .iter()
+        .map(|s| s.unwrap_or(floor))
+        .collect()
 }
 
 /// The fitness of a candidate that reached rung `depth` (0 = the first) of successive
@@ -193,7 +196,10 @@ mod tests {
         for g in &gens {
             assert_eq!(g.len(), 6);
             for x in g {
-                assert!((2.0..=12.0).contains(&x[0]) && (-10.0..=-2.0).contains(&x[1]), "{x:?}");
+                assert!(
+                    (2.0..=12.0).contains(&x[0]) && (-10.0..=-2.0).contains(&x[1]),
+                    "{x:?}"
+                );
             }
         }
     }
@@ -217,10 +223,16 @@ mod tests {
         let gens = run(&params(12));
         let last = gens.last().unwrap();
         let mean = [0, 1].map(|i| last.iter().map(|x| x[i]).sum::<f64>() / last.len() as f64);
-        assert!((mean[0] - 9.0).abs() < 1.0 && (mean[1] + 4.0).abs() < 1.0, "{mean:?}");
+        assert!(
+            (mean[0] - 9.0).abs() < 1.0 && (mean[1] + 4.0).abs() < 1.0,
+            "{mean:?}"
+        );
         let best_first = gens[0].iter().map(|&x| score(x)).fold(f64::MIN, f64::max);
         let best_last = last.iter().map(|&x| score(x)).fold(f64::MIN, f64::max);
-        assert!(best_last > best_first && best_last > 0.99, "{best_first} -> {best_last}");
+        assert!(
+            best_last > best_first && best_last > 0.99,
+            "{best_first} -> {best_last}"
+        );
     }
 
     #[test]
@@ -236,7 +248,10 @@ mod tests {
         let mean_w1 = last.iter().map(|x| x[0]).sum::<f64>() / last.len() as f64;
         let best = last.iter().map(|&x| edge(x)).fold(f64::MIN, f64::max);
         assert!(mean_w1 > 10.5 && best > -0.03, "{last:?}");
-        assert!(last.iter().any(|x| x[0] == 12.0), "nobody trained on the edge: {last:?}");
+        assert!(
+            last.iter().any(|x| x[0] == 12.0),
+            "nobody trained on the edge: {last:?}"
+        );
     }
 
     #[test]

@@ -90,7 +90,9 @@ impl Recording {
     }
 
     fn point(&self, i: usize, j: usize) -> Option<&RecordedPoint> {
-        self.points.iter().find(|p| (p.w1_index, p.w2_index) == (i, j))
+        self.points
+            .iter()
+            .find(|p| (p.w1_index, p.w2_index) == (i, j))
     }
 
     fn mean(&self, i: usize, j: usize) -> f64 {
@@ -134,7 +136,8 @@ impl Recording {
     fn interpolate(&self, w1: f64, w2: f64, f: &mut impl FnMut(usize, usize) -> f64) -> f64 {
         let (i0, i1, a) = bracket(&self.w1_values, w1);
         let (j0, j1, b) = bracket(&self.w2_values, w2);
-        (1.0 - a) * ((1.0 - b) * f(i0, j0) + b * f(i0, j1)) + a * ((1.0 - b) * f(i1, j0) + b * f(i1, j1))
+        (1.0 - a) * ((1.0 - b) * f(i0, j0) + b * f(i0, j1))
+            + a * ((1.0 - b) * f(i1, j0) + b * f(i1, j1))
     }
 
     fn nearest(&self, w1: f64, w2: f64) -> (usize, usize) {
@@ -267,7 +270,11 @@ pub fn replay_asha(rec: &Recording, s: &AshaSetup, seed: u64) -> Result<Replay, 
         if cells[c].target_rung + 1 == rungs.len() {
             cells[c].standing = Standing::Closed;
         } else {
-            let score = *cells[c].run.evals.get(&target).ok_or("missing evaluation")?;
+            let score = *cells[c]
+                .run
+                .evals
+                .get(&target)
+                .ok_or("missing evaluation")?;
             cells[c].scores.push(score);
             cells[c].standing = Standing::Paused;
         }
@@ -335,7 +342,10 @@ pub fn replay_cmaes(rec: &Recording, s: &CmaesSetup, seed: u64) -> Result<Replay
     let params = EvolutionParams {
         bounds: Bounds {
             lo: [rec.w1_values[0], rec.w2_values[0]],
-            hi: [*rec.w1_values.last().unwrap_or(&0.0), *rec.w2_values.last().unwrap_or(&0.0)],
+            hi: [
+                *rec.w1_values.last().unwrap_or(&0.0),
+                *rec.w2_values.last().unwrap_or(&0.0),
+            ],
         },
         population: s.population,
         sigma: s.sigma,
@@ -452,13 +462,25 @@ mod tests {
                         let evals = (1..=9)
                             .map(|k| {
                                 let e = 10 * k;
-                                (e, score * f64::from(e) / 90.0 + noise * rng.random_range(-0.5..0.5))
+                                (
+                                    e,
+                                    score * f64::from(e) / 90.0
+                                        + noise * rng.random_range(-0.5..0.5),
+                                )
                             })
                             .collect();
-                        RecordedRun { seed: r, score, evals }
+                        RecordedRun {
+                            seed: r,
+                            score,
+                            evals,
+                        }
                     })
                     .collect();
-                points.push(RecordedPoint { w1_index: i, w2_index: j, runs });
+                points.push(RecordedPoint {
+                    w1_index: i,
+                    w2_index: j,
+                    runs,
+                });
             }
         }
         Recording {
@@ -475,7 +497,11 @@ mod tests {
     fn asha_spends_less_than_the_grid_and_finds_a_good_point() {
         let rec = synthetic(0.02);
         rec.validate().unwrap();
-        let s = AshaSetup { min_epochs: 10, reduction: 3, workers: 4 };
+        let s = AshaSetup {
+            min_epochs: 10,
+            reduction: 3,
+            workers: 4,
+        };
         assert_eq!(asha_rungs(&rec, &s).unwrap(), vec![10, 30, 90]);
         let runs: Vec<Replay> = (0..50).map(|k| replay_asha(&rec, &s, k).unwrap()).collect();
         let sum = summarise(&runs);
@@ -504,7 +530,9 @@ mod tests {
             budget_fraction: 1.0,
             halving: None,
         };
-        let runs: Vec<Replay> = (0..30).map(|k| replay_cmaes(&rec, &full, k).unwrap()).collect();
+        let runs: Vec<Replay> = (0..30)
+            .map(|k| replay_cmaes(&rec, &full, k).unwrap())
+            .collect();
         let sum = summarise(&runs);
         assert!(sum.epoch_fraction <= 1.0 + 1e-9, "{sum:?}");
         assert!(sum.p_within_5pct > 0.5 && sum.mean_regret < 0.05, "{sum:?}");
@@ -515,10 +543,15 @@ mod tests {
             budget_fraction: 1.0 / 3.0,
             halving: Some((10, 3)),
         };
-        let runs: Vec<Replay> = (0..30).map(|k| replay_cmaes(&rec, &halved, k).unwrap()).collect();
+        let runs: Vec<Replay> = (0..30)
+            .map(|k| replay_cmaes(&rec, &halved, k).unwrap())
+            .collect();
         let sum = summarise(&runs);
         // 6x10 + 2x20 + 1x60 = 160 epochs a generation: 5 of them in 840.
-        assert!((sum.epoch_fraction - 5.0 * 160.0 / 2520.0).abs() < 1e-9, "{sum:?}");
+        assert!(
+            (sum.epoch_fraction - 5.0 * 160.0 / 2520.0).abs() < 1e-9,
+            "{sum:?}"
+        );
     }
 
     #[test]
@@ -529,7 +562,11 @@ mod tests {
         assert!((at - best).abs() < 1e-12);
         let mid = rec.interpolate(10.335, rec.w2_values[p.1], &mut |i, j| rec.mean(i, j));
         assert!((mid - (rec.mean(2, p.1) + rec.mean(3, p.1)) / 2.0).abs() < 1e-9);
-        let bad = AshaSetup { min_epochs: 15, reduction: 3, workers: 2 };
+        let bad = AshaSetup {
+            min_epochs: 15,
+            reduction: 3,
+            workers: 2,
+        };
         assert!(asha_rungs(&rec, &bad).unwrap_err().contains("epoch 15"));
         let mut holes = rec.clone();
         holes.points.pop();

@@ -343,7 +343,8 @@ pub fn point_results(cells: &[pb::Cell]) -> Vec<pb::PointResult> {
         .into_iter()
         .map(|key| {
             let group = &groups[&key];
-            let scored: Vec<&pb::GaitScore> = group.iter().filter_map(|c| c.score.as_ref()).collect();
+            let scored: Vec<&pb::GaitScore> =
+                group.iter().filter_map(|c| c.score.as_ref()).collect();
             let stat = |f: fn(&pb::GaitScore) -> f64| {
                 let v: Vec<f64> = scored.iter().map(|g| f(g)).collect();
                 crate::stats::Summary::of(&v).map(|s| pb::Stat {

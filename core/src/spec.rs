@@ -571,7 +571,11 @@ impl SweepSpec {
                     (0, 0)
                 };
                 let per_generation = if min_epochs > 0 {
-                    halving_cost(population, &halving_rungs(min_epochs, reduction, epochs), reduction)
+                    halving_cost(
+                        population,
+                        &halving_rungs(min_epochs, reduction, epochs),
+                        reduction,
+                    )
                 } else {
                     u64::from(population.max(1)) * u64::from(epochs)
                 } * u64::from(replicates);
@@ -778,7 +782,9 @@ pub const MAX_REPLICATES: u32 = 32;
 /// Smallest and largest of `v` (NaN-free values; (inf, -inf) when empty).
 fn min_max(v: &[f64]) -> (f64, f64) {
     v.iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| (lo.min(x), hi.max(x)))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
+            (lo.min(x), hi.max(x))
+        })
 }
 
 fn splitmix64(x: u64) -> u64 {
@@ -913,7 +919,10 @@ mod tests {
         assert_eq!((lo[0], hi[0]), (2.0, 12.0));
         let cells = r.candidate_cells(2, &[[3.0, -5.0], [4.0, -6.0]]);
         assert_eq!(cells.len(), 4, "two candidates x two replicates");
-        assert_eq!((cells[3].w1_index, cells[3].w2_index, cells[3].replicate), (2, 1, 1));
+        assert_eq!(
+            (cells[3].w1_index, cells[3].w2_index, cells[3].replicate),
+            (2, 1, 1)
+        );
         assert_eq!((cells[3].w1, cells[3].w2), (4.0, -6.0));
         let seeds: std::collections::BTreeSet<u64> = cells.iter().map(|c| c.seed).collect();
         assert_eq!(seeds.len(), 4);
@@ -928,7 +937,8 @@ mod tests {
             .contains("one generation of 6 candidates x 1 replicates needs 18000 epochs"));
         // Successive halving inside each generation: rungs 100, 300, 900, 2700, 3000; a
         // generation of 6 costs 6x100 + 2x200 + 1x600 + 1x1800 + 1x300 = 3700 epochs.
-        let h = parse("[search]\nmethod = \"cmaes\"\nmin_epochs = 100\nbudget_epochs = 28000\n").unwrap();
+        let h = parse("[search]\nmethod = \"cmaes\"\nmin_epochs = 100\nbudget_epochs = 28000\n")
+            .unwrap();
         assert_eq!(h.rungs(), vec![100, 300, 900, 2700, 3000]);
         assert_eq!(halving_cost(6, &h.rungs(), 3), 3700);
         assert_eq!(
@@ -946,10 +956,17 @@ mod tests {
             .resolve_with(ok)
             .unwrap();
         assert_eq!(back.search, h.search);
-        assert!(err("seeds = 2\n[search]\nmethod = \"cmaes\"\nmin_epochs = 100\n").contains("use seeds = 1"));
-        assert!(err("[search]\nmethod = \"cmaes\"\npopulation = 1\n").contains("search.population is 1"));
+        assert!(
+            err("seeds = 2\n[search]\nmethod = \"cmaes\"\nmin_epochs = 100\n")
+                .contains("use seeds = 1")
+        );
+        assert!(err("[search]\nmethod = \"cmaes\"\npopulation = 1\n")
+            .contains("search.population is 1"));
         assert!(err("[search]\nmethod = \"cmaes\"\nsigma = 0\n").contains("search.sigma is 0"));
-        assert!(err("w2 = { values = [-6.0] }\n[search]\nmethod = \"cmaes\"\n").contains("give w1 and w2 a range"));
+        assert!(
+            err("w2 = { values = [-6.0] }\n[search]\nmethod = \"cmaes\"\n")
+                .contains("give w1 and w2 a range")
+        );
         let two = SweepSpec::from_toml(
             "robot = \"anymal\"\nterrains = [\"flat\", \"rough\"]\npreset_grid = true\n[search]\nmethod = \"cmaes\"\n",
         )
@@ -958,8 +975,10 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(two.contains("searches one terrain"), "{two}");
-        assert!(err("[search]\nmethod = \"asha\"\npopulation = 6\n").contains("belong to method = \"cmaes\""));
-        assert!(err("[search]\nmethod = \"grid\"\nmin_epochs = 6\n").contains("belong to method = \"asha\" or \"cmaes\""));
+        assert!(err("[search]\nmethod = \"asha\"\npopulation = 6\n")
+            .contains("belong to method = \"cmaes\""));
+        assert!(err("[search]\nmethod = \"grid\"\nmin_epochs = 6\n")
+            .contains("belong to method = \"asha\" or \"cmaes\""));
     }
 
     #[test]

@@ -282,9 +282,15 @@ async fn cmaes_trains_generation_after_generation_across_a_restart() {
             "candidate outside the axes' ranges: {c:?}"
         );
     }
-    let distinct: std::collections::BTreeSet<(u64, u64)> =
-        cells.iter().map(|c| (c.3.to_bits(), c.4.to_bits())).collect();
-    assert_eq!(distinct.len(), 6, "every candidate is a new point: {cells:?}");
+    let distinct: std::collections::BTreeSet<(u64, u64)> = cells
+        .iter()
+        .map(|c| (c.3.to_bits(), c.4.to_bits()))
+        .collect();
+    assert_eq!(
+        distinct.len(),
+        6,
+        "every candidate is a new point: {cells:?}"
+    );
     let best = cells
         .iter()
         .fold(None::<(i64, f64)>, |b, c| match b {
@@ -346,22 +352,42 @@ async fn a_recorded_grid_replays_in_the_search_bench() {
         .args(["--sweep", &sweep.sweep_id.to_string()])
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let rec: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(rec["points"].as_array().unwrap().len(), 4);
     let run0 = &rec["points"][0]["runs"][0];
     assert_eq!(rec["points"][0]["runs"].as_array().unwrap().len(), 2);
-    assert!(run0["evals"]["1"].is_number() && run0["evals"]["2"].is_number(), "{run0}");
+    assert!(
+        run0["evals"]["1"].is_number() && run0["evals"]["2"].is_number(),
+        "{run0}"
+    );
     let file = tmp.path().join("grid.json");
     std::fs::write(&file, &out.stdout).unwrap();
     let out = std::process::Command::new(bin("search-bench"))
         .args(["run", "--data"])
         .arg(&file)
-        .args(["--replays", "20", "--reduction", "2", "--population", "2", "--budget-fraction", "1"])
+        .args([
+            "--replays",
+            "20",
+            "--reduction",
+            "2",
+            "--population",
+            "2",
+            "--budget-fraction",
+            "1",
+        ])
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{text}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(
         text.contains("asha rungs [1, 2, 3]") && text.contains("cma-es pop 2"),
         "{text}"

@@ -80,12 +80,22 @@ fn an_annealed_std_follows_its_schedule_and_the_mean_still_learns() {
         let want = (0.5f64.ln() * (1.0 - (f64::from(epoch) / 40.0).min(1.0))
             + 0.2f64.ln() * (f64::from(epoch) / 40.0).min(1.0))
         .exp();
-        assert!((stats.update.action_std - want).abs() < 1e-5, "epoch {epoch}: {}", stats.update.action_std);
+        assert!(
+            (stats.update.action_std - want).abs() < 1e-5,
+            "epoch {epoch}: {}",
+            stats.update.action_std
+        );
     }
     let after = eval_return(&runner.ppo);
-    assert!(after > -8.0, "point mass not learnt with an annealed std: {after:.2}");
+    assert!(
+        after > -8.0,
+        "point mass not learnt with an annealed std: {after:.2}"
+    );
     // The learned std (rsl_rl) is the default.
-    assert_eq!(Ppo::new(4, 2, toy_params(), Device::Cpu, 1).scheduled_noise_std(3), None);
+    assert_eq!(
+        Ppo::new(4, 2, toy_params(), Device::Cpu, 1).scheduled_noise_std(3),
+        None
+    );
 }
 
 /// Wraps the toy and poisons one observation at a given step.

@@ -192,7 +192,9 @@ fn default_min_epochs(rec: &Recording, reduction: u32) -> anyhow::Result<u32> {
             return Ok(m);
         }
     }
-    bail!("no rung sequence with reduction {reduction} is evaluated in every run: give --min-epochs")
+    bail!(
+        "no rung sequence with reduction {reduction} is evaluated in every run: give --min-epochs"
+    )
 }
 
 async fn export(

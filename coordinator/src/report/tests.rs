@@ -469,7 +469,12 @@ fn an_evolutionary_search_is_drawn_as_its_candidates() {
     assert_png(&png, 900, 700);
     assert_svg(
         &dir.path().join("candidates_flat.svg"),
-        &["CMA-ES", "12 candidates in 3 generations", "log10 torque weight", "gait score"],
+        &[
+            "CMA-ES",
+            "12 candidates in 3 generations",
+            "log10 torque weight",
+            "gait score",
+        ],
     );
     assert!(
         !dir.path().join("score_flat.png").exists(),

@@ -379,7 +379,12 @@ pub(super) async fn apply_evolution(tx: &mut Tx, sweep: SweepId) -> Result<Optio
             let cells = spec.candidate_cells(generation, &candidates);
             insert_cells(tx, sweep, &cells, spec.rungs()[0]).await?;
             let n = cells.len();
-            tracing::info!(sweep = sweep.0, generation, cells = n, "evolutionary search: next generation queued");
+            tracing::info!(
+                sweep = sweep.0,
+                generation,
+                cells = n,
+                "evolutionary search: next generation queued"
+            );
             Ok(Some((generation, n)))
         }
         NextStep::Done(why) => {

@@ -627,7 +627,10 @@ async fn the_evolutionary_search_queues_a_generation_when_the_last_one_ends() {
     assert_eq!(gen0.len(), 6, "3 candidates x 2 replicates");
     for c in &gen0 {
         assert_eq!((c.w1_index, c.target_epochs), (0, 3));
-        assert!((0.0..=2.0).contains(&c.w1) && (-2.0..=0.0).contains(&c.w2), "{c:?}");
+        assert!(
+            (0.0..=2.0).contains(&c.w1) && (-2.0..=0.0).contains(&c.w2),
+            "{c:?}"
+        );
     }
     // A candidate's replicates share its (w1, w2), and their seeds differ.
     assert_eq!((gen0[0].w1, gen0[0].w2), (gen0[1].w1, gen0[1].w2));
@@ -651,7 +654,11 @@ async fn the_evolutionary_search_queues_a_generation_when_the_last_one_ends() {
         let out = report_at_target(&store, &g, g.cell.w1, now).await;
         assert!(out.finished.is_none(), "one more generation to go");
         let queued = store.cells(sweep.id).await.unwrap().len();
-        assert_eq!(queued, if n < 5 { 6 } else { 12 }, "generation 1 waits for all of 0");
+        assert_eq!(
+            queued,
+            if n < 5 { 6 } else { 12 },
+            "generation 1 waits for all of 0"
+        );
     }
     let cells = store.cells(sweep.id).await.unwrap();
     let gen1: Vec<_> = cells.iter().filter(|c| c.w1_index == 1).collect();
@@ -709,7 +716,11 @@ async fn cmaes_halves_inside_each_generation() {
     let (g, out) = train_to_target(&store, &w, 0.5, now).await.unwrap();
     assert_eq!(g.cell.target_epochs, 3);
     assert_eq!(out.decisions.len(), 1, "alone at rung 1, it goes on");
-    assert_eq!(store.cells(sweep.id).await.unwrap().len(), 3, "generation 0 is still open");
+    assert_eq!(
+        store.cells(sweep.id).await.unwrap().len(),
+        3,
+        "generation 0 is still open"
+    );
     let (g, out) = train_to_target(&store, &w, 0.7, now + 1).await.unwrap();
     assert_eq!((g.cell.target_epochs, out.cell.state), (9, CellState::Done));
     assert_eq!(out.promotions.len(), 2, "overall and on its terrain");
@@ -730,5 +741,9 @@ async fn cmaes_halves_inside_each_generation() {
         .fetch_one(store.writer())
         .await
         .unwrap();
-    assert_eq!(trained, 2 * (3 + 2 + 6), "each generation: 3x1 + 1x2 + 1x6 epochs");
+    assert_eq!(
+        trained,
+        2 * (3 + 2 + 6),
+        "each generation: 3x1 + 1x2 + 1x6 epochs"
+    );
 }

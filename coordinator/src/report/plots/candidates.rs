@@ -3,9 +3,9 @@
 //! promoted candidate is starred. Unscored candidates are grey rings.
 
 use super::{colormap, draw_header, fmt_tick, luminance, value_range, Figure, SANS};
-use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 /// One candidate: (w1, w2), generation, score if any.
 pub struct Candidate {
@@ -112,7 +112,10 @@ impl Figure for Candidates {
                         + Text::new(
                             "\u{2605}".to_string(),
                             (18, 0),
-                            (SANS, 26).into_font().color(&red).pos(Pos::new(HPos::Left, VPos::Center)),
+                            (SANS, 26)
+                                .into_font()
+                                .color(&red)
+                                .pos(Pos::new(HPos::Left, VPos::Center)),
                         ),
                 ))?;
             }
