@@ -10,6 +10,28 @@ use std::time::Duration;
 
 const SWEEP_TIMEOUT: Duration = Duration::from_secs(600);
 
+/// The cell promoted over all terrains, from SQL.
+async fn promoted_cell(db: &sqlx::SqlitePool, sweep: i64) -> i64 {
+    sqlx::query_scalar(
+        "SELECT cell_id FROM promotions WHERE sweep_id = ? AND terrain = '' ORDER BY id DESC LIMIT 1",
+    )
+    .bind(sweep)
+    .fetch_one(db)
+    .await
+    .unwrap()
+}
+
+/// `coordinator show SWEEP`'s output; panics if it fails.
+fn show(coord: &Coord, sweep: i64) -> String {
+    let out = std::process::Command::new(bin("coordinator"))
+        .args(["show", "--connect", &coord.url(), &sweep.to_string()])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(out.status.success(), "show failed: {text}");
+    text
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn asha_continues_the_best_cell_from_its_rung_and_stops_the_rest() {
     let _g = heavy();
@@ -108,13 +130,7 @@ async fn asha_continues_the_best_cell_from_its_rung_and_stops_the_rest() {
             );
         }
     }
-    let promoted: i64 = sqlx::query_scalar(
-        "SELECT cell_id FROM promotions WHERE sweep_id = ? AND terrain = '' ORDER BY id DESC LIMIT 1",
-    )
-    .bind(sweep.sweep_id)
-    .fetch_one(&db)
-    .await
-    .unwrap();
+    let promoted = promoted_cell(&db, sweep.sweep_id).await;
     assert_eq!(promoted, best);
     // Five of the grid's nine epochs were trained.
     let trained: i64 = sqlx::query_scalar("SELECT SUM(epochs_done) FROM cells")
@@ -123,20 +139,8 @@ async fn asha_continues_the_best_cell_from_its_rung_and_stops_the_rest() {
         .unwrap();
     assert_eq!(trained, 5);
 
-    let out = std::process::Command::new(bin("coordinator"))
-        .args([
-            "show",
-            "--connect",
-            &coord.url(),
-            &sweep.sweep_id.to_string(),
-        ])
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && text.contains("stopped"),
-        "show output: {text}"
-    );
+    let text = show(&coord, sweep.sweep_id);
+    assert!(text.contains("stopped"), "show output: {text}");
 }
 
 /// Item 6 of the search issue: a worker killed while a continued cell trains towards its
@@ -299,13 +303,7 @@ async fn cmaes_trains_generation_after_generation_across_a_restart() {
         })
         .unwrap()
         .0;
-    let promoted: i64 = sqlx::query_scalar(
-        "SELECT cell_id FROM promotions WHERE sweep_id = ? AND terrain = '' ORDER BY id DESC LIMIT 1",
-    )
-    .bind(sweep.sweep_id)
-    .fetch_one(&db)
-    .await
-    .unwrap();
+    let promoted = promoted_cell(&db, sweep.sweep_id).await;
     assert_eq!(promoted, best);
     let trained: i64 = sqlx::query_scalar("SELECT SUM(epochs_done) FROM cells")
         .fetch_one(&db)
@@ -313,20 +311,8 @@ async fn cmaes_trains_generation_after_generation_across_a_restart() {
         .unwrap();
     assert_eq!(trained, 60);
 
-    let out = std::process::Command::new(bin("coordinator"))
-        .args([
-            "show",
-            "--connect",
-            &coord.url(),
-            &sweep.sweep_id.to_string(),
-        ])
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && text.contains("generation"),
-        "show output: {text}"
-    );
+    let text = show(&coord, sweep.sweep_id);
+    assert!(text.contains("generation"), "show output: {text}");
 }
 
 /// Item 5 of the search issue on real processes: a full grid recorded with `eval.every`
