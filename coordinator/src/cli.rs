@@ -419,16 +419,7 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                 } else {
                     " "
                 };
-                let text = match (point_summary(&here), here.first()) {
-                    (Some((st, fall)), _) if replicates > 1 => {
-                        format!("{:.3}±{:.3}/{:>3.0}%{mark}", st.mean, st.ci95, 100.0 * fall)
-                    }
-                    (Some((st, fall)), _) => {
-                        format!("{:.4}/{:>3.0}%{mark}", st.mean, 100.0 * fall)
-                    }
-                    (None, Some(c)) => format!("{} ", cell_state(c.state)),
-                    (None, None) => "- ".into(),
-                };
+                let text = point_text(&here, replicates, mark);
                 let _ = write!(o, " {:>width$}", text);
             }
             o.push('\n');
@@ -471,6 +462,19 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
     o
 }
 
+/// One point's cell text: score (mean ± 95% CI with replicates) / fall rate and `mark`,
+/// or the state of its first cell while none is scored.
+fn point_text(here: &[&pb::Cell], replicates: u32, mark: &str) -> String {
+    match (point_summary(here), here.first()) {
+        (Some((st, fall)), _) if replicates > 1 => {
+            format!("{:.3}±{:.3}/{:>3.0}%{mark}", st.mean, st.ci95, 100.0 * fall)
+        }
+        (Some((st, fall)), _) => format!("{:.4}/{:>3.0}%{mark}", st.mean, 100.0 * fall),
+        (None, Some(c)) => format!("{} ", cell_state(c.state)),
+        (None, None) => "- ".into(),
+    }
+}
+
 /// An evolutionary search's candidates, generation by generation: (w1, w2), the score
 /// (mean ± 95% CI over replicates) / fall rate or the state; `*` marks the promoted one.
 fn render_candidates(
@@ -505,14 +509,7 @@ fn render_candidates(
         } else {
             " "
         };
-        let text = match (point_summary(&here), here.first()) {
-            (Some((st, fall)), _) if replicates > 1 => {
-                format!("{:.3}±{:.3}/{:>3.0}%{mark}", st.mean, st.ci95, 100.0 * fall)
-            }
-            (Some((st, fall)), _) => format!("{:.4}/{:>3.0}%{mark}", st.mean, 100.0 * fall),
-            (None, Some(c)) => format!("{} ", cell_state(c.state)),
-            (None, None) => "- ".into(),
-        };
+        let text = point_text(&here, replicates, mark);
         let (w1, w2) = here.first().map_or((f64::NAN, f64::NAN), |c| (c.w1, c.w2));
         let _ = writeln!(o, "{g:>10} {k:>9} {w1:>9.3} {w2:>9.3} {text:>22}");
     }
