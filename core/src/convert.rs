@@ -265,6 +265,7 @@ impl From<&CellRecord> for pb::Cell {
             seed: c.seed,
             replicate: c.replicate,
             target_epochs: c.target_epochs,
+            rung_score: c.rung_score,
         }
     }
 }

@@ -49,6 +49,9 @@ pub struct CellRecord {
     pub target_epochs: u32,
     /// Score once done.
     pub score: Option<GaitScore>,
+    /// The gait score of its latest successive-halving rung decision (a stopped cell's
+    /// score is the one it stopped with).
+    pub rung_score: Option<f64>,
     /// Last error of a failed attempt.
     pub last_error: Option<String>,
 }

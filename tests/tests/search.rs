@@ -140,7 +140,14 @@ async fn asha_continues_the_best_cell_from_its_rung_and_stops_the_rest() {
     assert_eq!(trained, 5);
 
     let text = show(&coord, sweep.sweep_id);
-    assert!(text.contains("stopped"), "show output: {text}");
+    // A stopped cell shows the rung it stopped at and the score it stopped with.
+    for (_, score, _) in rung0.iter().filter(|r| r.0 != best) {
+        let shown = format!("stopped@1: {score:.3}");
+        assert!(
+            text.contains(&shown),
+            "{shown} missing from show output: {text}"
+        );
+    }
 }
 
 /// Item 6 of the search issue: a worker killed while a continued cell trains towards its

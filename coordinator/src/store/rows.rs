@@ -85,6 +85,8 @@ pub struct CellRow {
     pub target_epochs: i64,
     /// Last error.
     pub last_error: Option<String>,
+    /// Score of the latest rung decision.
+    pub rung_score: Option<f64>,
     /// The score columns.
     #[sqlx(flatten)]
     pub score: ScoreRow,
@@ -93,7 +95,8 @@ pub struct CellRow {
 /// The columns [`CellRow`] reads: `cells c LEFT JOIN scores s`.
 pub const CELL_COLUMNS: &str =
     "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, \
-     c.seed, c.replicate, c.state, c.attempts, c.epochs_done, c.target_epochs, c.last_error, s.score, s.track, s.effort, s.tilt, \
+     c.seed, c.replicate, c.state, c.attempts, c.epochs_done, c.target_epochs, c.last_error, \
+     (SELECT d.score FROM rung_decisions d WHERE d.cell_id = c.id ORDER BY d.rung DESC LIMIT 1) AS rung_score, s.score, s.track, s.effort, s.tilt, \
      s.progress, s.fall_rate, s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots";
 
 impl TryFrom<CellRow> for CellRecord {
@@ -115,6 +118,7 @@ impl TryFrom<CellRow> for CellRecord {
             epochs_done: r.epochs_done as u32,
             target_epochs: r.target_epochs as u32,
             score: r.score.into_score(),
+            rung_score: r.rung_score,
             last_error: r.last_error,
         })
     }
