@@ -36,6 +36,11 @@ pub enum ClientCmd {
         #[command(flatten)]
         conn: Conn,
     },
+    /// The coordinator's load: running leases, queued metric reports and write lag.
+    Status {
+        #[command(flatten)]
+        conn: Conn,
+    },
     /// Show a sweep: its state and the grid of gait scores (rows w1, columns w2, best marked).
     Show {
         #[command(flatten)]
@@ -128,6 +133,18 @@ pub async fn run(cmd: ClientCmd) -> anyhow::Result<()> {
                 .await?
                 .into_inner();
             println!("created sweep {} ({} cells)", s.sweep_id, s.cells_total);
+        }
+        ClientCmd::Status { conn } => {
+            let mut c = connect(&conn).await?;
+            let s = c.get_status(pb::GetStatusRequest {}).await?.into_inner();
+            println!("uptime                  {:.0} s", s.uptime_seconds);
+            println!("leases running          {}", s.leases_running);
+            println!("metric reports queued   {}", s.metric_reports_queued);
+            println!("metric write lag        {:.1} ms", s.metric_write_lag_ms);
+            println!(
+                "metrics written         {} rows in {} reports, {} transactions",
+                s.metric_rows_written, s.metric_reports_written, s.metric_batches
+            );
         }
         ClientCmd::List { conn } => {
             let mut c = connect(&conn).await?;
@@ -470,7 +487,12 @@ fn point_text(here: &[&pb::Cell], replicates: u32, mark: &str) -> String {
             format!("{:.3}±{:.3}/{:>3.0}%{mark}", st.mean, st.ci95, 100.0 * fall)
         }
         (Some((st, fall)), _) => format!("{:.4}/{:>3.0}%{mark}", st.mean, 100.0 * fall),
-        (None, Some(c)) => format!("{} ", cell_state(c.state)),
+        (None, Some(c)) => match here.iter().find_map(|c| c.rung_score) {
+            Some(r) if c.state == pb::CellState::Stopped as i32 => {
+                format!("stopped@{}: {r:.3} ", c.epochs_done)
+            }
+            _ => format!("{} ", cell_state(c.state)),
+        },
         (None, None) => "- ".into(),
     }
 }

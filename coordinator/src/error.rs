@@ -68,6 +68,14 @@ pub enum Error {
     /// A request is malformed.
     #[error("bad request: {0}")]
     BadRequest(String),
+    /// A group of metric reports committed together failed; every report in it gets this.
+    #[error("storing metrics failed, retry the report: {message}")]
+    Write {
+        /// The database's error.
+        message: String,
+        /// Whether the database or disk was full.
+        disk_full: bool,
+    },
 }
 
 impl Error {
@@ -80,6 +88,7 @@ impl Error {
             }
             // SQLITE_FULL (13): "database or disk is full".
             Error::Db(sqlx::Error::Database(d)) => d.code().as_deref() == Some("13"),
+            Error::Write { disk_full, .. } => *disk_full,
             _ => false,
         }
     }
@@ -122,6 +131,7 @@ impl From<Error> for tonic::Status {
             | Error::Migrate(_)
             | Error::Server(_)
             | Error::Io { .. }
+            | Error::Write { .. }
             | Error::Json(_) => {
                 tracing::error!(error = %msg, "internal error");
                 Status::internal(msg)

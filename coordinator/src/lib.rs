@@ -9,6 +9,7 @@ pub mod error;
 pub mod evolution;
 pub mod leases;
 pub mod live;
+pub mod loadgen;
 pub mod presets;
 pub mod report;
 pub mod sched;

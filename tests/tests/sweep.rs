@@ -72,6 +72,25 @@ async fn two_workers_finish_a_2x2_sweep() {
                 .unwrap();
         assert_eq!(epochs, 2, "learning curve of cell {cell}");
     }
+    // The load bench sends exactly the metric set a real worker reports per epoch.
+    let names: Vec<String> = sqlx::query_scalar(
+        "SELECT DISTINCT name FROM epoch_metrics WHERE name NOT LIKE 'eval/%' ORDER BY name",
+    )
+    .fetch_all(&db)
+    .await
+    .unwrap();
+    assert_eq!(names, gaitsweep_coordinator::loadgen::TRAINER_METRICS);
+    // Every report was committed; the coordinator says so.
+    let status = c
+        .get_status(pb::GetStatusRequest {})
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(status.metric_reports_queued, 0);
+    assert!(
+        status.metric_rows_written >= 4 * 2 * names.len() as u64,
+        "{status:?}"
+    );
     // every stored checkpoint file hashes to its name
     for row in sqlx::query("SELECT sha256, path FROM checkpoints")
         .fetch_all(&db)

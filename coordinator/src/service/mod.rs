@@ -39,6 +39,8 @@ pub struct Coordinator<S> {
     pub events: broadcast::Sender<pb::SweepEvent>,
     /// Tunables.
     pub limits: Limits,
+    /// When this coordinator started.
+    pub started: std::time::Instant,
 }
 
 /// Current unix time in milliseconds.
@@ -74,6 +76,7 @@ impl<S: Store> Coordinator<S> {
             blobs,
             events,
             limits,
+            started: std::time::Instant::now(),
         }))
     }
 

@@ -145,4 +145,20 @@ impl<S: Store> SweepService for SweepApi<S> {
         self.0.emit(id.0, Kind::Finished(sweep.clone()));
         Ok(Response::new(sweep))
     }
+
+    async fn get_status(
+        &self,
+        _: Request<pb::GetStatusRequest>,
+    ) -> Result<Response<pb::CoordinatorStatus>, Status> {
+        let w = self.0.store.write_stats();
+        Ok(Response::new(pb::CoordinatorStatus {
+            leases_running: self.0.leases.len() as u32,
+            metric_reports_queued: w.queued,
+            metric_write_lag_ms: w.lag_ms,
+            metric_rows_written: w.rows,
+            metric_reports_written: w.reports,
+            metric_batches: w.batches,
+            uptime_seconds: self.0.started.elapsed().as_secs_f64(),
+        }))
+    }
 }

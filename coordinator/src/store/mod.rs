@@ -1,6 +1,7 @@
 //! Storage behind one trait: everything the coordinator persists. The SQLite
 //! implementation is [`sqlite::SqliteStore`].
 
+pub mod progress_writer;
 pub mod rows;
 mod search;
 pub mod sqlite;
@@ -16,6 +17,7 @@ use gaitsweep_model::GaitScore;
 use std::collections::BTreeMap;
 use std::future::Future;
 
+pub use progress_writer::WriteSnapshot;
 pub use sqlite::SqliteStore;
 
 /// What a worker says about itself when it registers.
@@ -169,12 +171,15 @@ pub trait Store: Send + Sync + 'static {
     /// The cell and sweep of a lease, refusing leases whose cell is closed.
     fn open_lease(&self, lease: LeaseId) -> impl Future<Output = Result<(CellId, SweepId)>> + Send;
     /// Stores (or replaces) epoch metrics of a lease's cell; returns rows written and the
-    /// cell and sweep.
+    /// cell and sweep. Concurrent calls may be committed together (group commit); a call
+    /// returns once its rows are committed.
     fn record_progress(
         &self,
         lease: LeaseId,
         epochs: &[(u32, BTreeMap<String, f64>)],
     ) -> impl Future<Output = Result<(usize, CellId, SweepId)>> + Send;
+    /// The metric writer's queue, lag and counters.
+    fn write_stats(&self) -> WriteSnapshot;
     /// Records an uploaded checkpoint file (already in place under the data dir).
     fn record_checkpoint(
         &self,

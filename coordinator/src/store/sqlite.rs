@@ -1,8 +1,9 @@
 //! The SQLite implementation of [`Store`]: WAL, one writer connection whose transactions
 //! start with `BEGIN IMMEDIATE` (so they never fail on a busy snapshot), a pool of readers.
 
+use super::progress_writer::{ProgressWriter, WriteSnapshot};
 use super::rows::{spec_of, CellRow, SweepRow, CELL_COLUMNS, SWEEP_COLUMNS};
-use super::search::{self, apply_asha, record_periodic_eval, rung_result};
+use super::search::{self, apply_asha, rung_result};
 use super::{
     AttemptEnd, AttemptOutcome, LeaseGrant, ResultOutcome, RunningLease, Store, WorkerInfo,
 };
@@ -28,6 +29,7 @@ pub static MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("../migrations");
 pub struct SqliteStore {
     write: SqlitePool,
     read: SqlitePool,
+    progress: ProgressWriter,
 }
 
 pub(super) type Tx = Transaction<'static, Sqlite>;
@@ -81,7 +83,12 @@ impl SqliteStore {
             .max_connections(4)
             .connect_with(opts.read_only(true))
             .await?;
-        Ok(Self { write, read })
+        let progress = ProgressWriter::start(write.clone());
+        Ok(Self {
+            write,
+            read,
+            progress,
+        })
     }
 
     /// The pool of read-only connections (the live page reads through it).
@@ -130,16 +137,16 @@ async fn sweep_tx(tx: &mut Tx, id: SweepId) -> Result<SweepRecord> {
 
 /// What a lease id refers to.
 pub(super) struct LeaseCell {
-    cell: CellId,
-    sweep: SweepId,
+    pub(super) cell: CellId,
+    pub(super) sweep: SweepId,
     /// The cell's state.
-    state: CellState,
+    pub(super) state: CellState,
     /// The attempt's state.
     attempt_state: String,
     /// The epochs the cell trains to in this attempt (its target: a rung or the end).
-    epochs: u32,
+    pub(super) epochs: u32,
     /// The spec's epochs: a result at fewer is a rung result.
-    total: u32,
+    pub(super) total: u32,
 }
 
 /// The cell, its state and its epochs for a lease id.
@@ -584,45 +591,11 @@ impl Store for SqliteStore {
         lease: LeaseId,
         epochs: &[(u32, BTreeMap<String, f64>)],
     ) -> Result<(usize, CellId, SweepId)> {
-        let mut tx = self.begin().await?;
-        let LeaseCell {
-            cell,
-            sweep,
-            state,
-            epochs: total,
-            ..
-        } = lease_cell(&mut tx, lease).await?;
-        refuse_closed(cell, state)?;
-        validate::progress(total, epochs)?;
-        let mut rows = 0;
-        let mut last = 0;
-        for (epoch, values) in epochs {
-            last = last.max(*epoch);
-            for (name, value) in values {
-                sqlx::query(
-                    "INSERT INTO epoch_metrics (cell_id, epoch, name, value, attempt_id) VALUES (?, ?, ?, ?, ?) \
-                     ON CONFLICT (cell_id, epoch, name) DO UPDATE SET value = excluded.value, attempt_id = excluded.attempt_id",
-                )
-                .bind(cell.0)
-                .bind(*epoch as i64)
-                .bind(name)
-                .bind(*value)
-                .bind(lease.0)
-                .execute(&mut *tx)
-                .await?;
-                rows += 1;
-            }
-            if let Some(score) = values.get("eval/score") {
-                record_periodic_eval(&mut tx, cell, lease, *epoch, *score, values).await?;
-            }
-        }
-        sqlx::query("UPDATE cells SET epochs_done = MAX(epochs_done, ?) WHERE id = ?")
-            .bind(last as i64)
-            .bind(cell.0)
-            .execute(&mut *tx)
-            .await?;
-        tx.commit().await?;
-        Ok((rows, cell, sweep))
+        self.progress.write(lease, epochs).await
+    }
+
+    fn write_stats(&self) -> WriteSnapshot {
+        self.progress.stats().snapshot()
     }
 
     async fn record_checkpoint(

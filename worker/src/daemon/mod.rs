@@ -384,25 +384,58 @@ async fn deliver<C: Coordinator>(
         tracing::warn!(lease, code = ?s.code(), error = %s.message(), "coordinator refused a report, stopping the cell");
         stop.store(true, Ordering::Relaxed);
     };
-    while let Some(ev) = rx.recv().await {
+    let mut next: Option<Event> = None;
+    loop {
+        let ev = match next.take() {
+            Some(ev) => ev,
+            None => match rx.recv().await {
+                Some(ev) => ev,
+                None => break,
+            },
+        };
         match ev {
             Event::Epoch(m) => {
-                tracing::info!(
-                    lease,
-                    epoch = m.epoch,
-                    epochs,
-                    mean_return = m.values.get("mean_return").copied(),
-                    "epoch"
-                );
+                // Backpressure: epochs that finished while the last report was on its way
+                // go in one report, so a coordinator that falls behind gets fewer, larger
+                // reports instead of a growing queue of calls that time out.
+                let mut batch = vec![m];
+                while let Ok(ev) = rx.try_recv() {
+                    match ev {
+                        Event::Epoch(m) => batch.push(m),
+                        other => {
+                            next = Some(other);
+                            break;
+                        }
+                    }
+                }
+                for m in &batch {
+                    tracing::info!(
+                        lease,
+                        epoch = m.epoch,
+                        epochs,
+                        mean_return = m.values.get("mean_return").copied(),
+                        "epoch"
+                    );
+                }
                 if closed {
                     continue;
                 }
+                if batch.len() > 1 {
+                    tracing::debug!(
+                        lease,
+                        epochs = batch.len(),
+                        "reporting a backlog of epochs in one call"
+                    );
+                }
                 let req = pb::ReportProgressRequest {
                     lease_id: lease,
-                    epochs: vec![pb::EpochMetrics {
-                        epoch: m.epoch,
-                        values: m.values,
-                    }],
+                    epochs: batch
+                        .into_iter()
+                        .map(|m| pb::EpochMetrics {
+                            epoch: m.epoch,
+                            values: m.values,
+                        })
+                        .collect(),
                 };
                 if let Err(s) = ctx
                     .retry

@@ -1,0 +1,347 @@
+//! Group commit of epoch metrics: every `ReportProgress` call waits on one queue, one task
+//! drains whatever is queued and writes it in one transaction (one multi-row `INSERT` per
+//! few hundred rows), then answers every call. With many workers, one commit carries many
+//! reports instead of one each; a report is answered only after its rows are committed.
+//! The queue's depth and the wait of its oldest report are the coordinator's write lag,
+//! logged when it grows and exposed through [`WriteStats`].
+
+use super::search::record_periodic_eval;
+use super::sqlite::{lease_cell, refuse_closed};
+use crate::{validate, Error, Result};
+use gaitsweep_core::{CellId, LeaseId, SweepId};
+use sqlx::{QueryBuilder, Sqlite, SqlitePool};
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::sync::{mpsc, oneshot};
+
+/// Reports written in one transaction at most (bounds a transaction's time and memory).
+pub const MAX_BATCH: usize = 512;
+/// Rows per multi-row `INSERT` (5 parameters each, well below SQLite's 32,766).
+const ROWS_PER_INSERT: usize = 400;
+/// Reports that may wait before callers wait to enqueue (the backpressure a worker sees
+/// as a slower answer, never as an error).
+const QUEUE: usize = 16_384;
+/// A write lag above this is logged as a warning (at most every 10 s).
+const LAG_WARN: Duration = Duration::from_secs(1);
+
+/// What a stored progress report answers: rows written, the cell and its sweep.
+pub type ProgressAck = (usize, CellId, SweepId);
+
+/// Counters of the metric writer, shared with whoever reports them.
+#[derive(Debug, Default)]
+pub struct WriteStats {
+    /// Reports queued and not yet written.
+    pub queued: AtomicU64,
+    /// How long the oldest report of the last batch waited, microseconds.
+    pub last_lag_us: AtomicU64,
+    /// Metric rows written since start.
+    pub rows: AtomicU64,
+    /// Reports written since start.
+    pub reports: AtomicU64,
+    /// Transactions committed since start.
+    pub batches: AtomicU64,
+}
+
+/// A snapshot of [`WriteStats`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WriteSnapshot {
+    /// Reports queued and not yet written.
+    pub queued: u64,
+    /// Wait of the oldest report of the last batch, milliseconds.
+    pub lag_ms: f64,
+    /// Metric rows written since start.
+    pub rows: u64,
+    /// Reports written since start.
+    pub reports: u64,
+    /// Transactions committed since start.
+    pub batches: u64,
+}
+
+impl WriteStats {
+    /// The counters now.
+    pub fn snapshot(&self) -> WriteSnapshot {
+        let g = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        WriteSnapshot {
+            queued: g(&self.queued),
+            lag_ms: g(&self.last_lag_us) as f64 / 1000.0,
+            rows: g(&self.rows),
+            reports: g(&self.reports),
+            batches: g(&self.batches),
+        }
+    }
+}
+
+struct Job {
+    lease: LeaseId,
+    epochs: Vec<(u32, BTreeMap<String, f64>)>,
+    queued: Instant,
+    reply: oneshot::Sender<Result<ProgressAck>>,
+}
+
+/// The sending side of the metric writer; cheap to clone.
+#[derive(Clone)]
+pub struct ProgressWriter {
+    tx: mpsc::Sender<Job>,
+    stats: Arc<WriteStats>,
+}
+
+impl ProgressWriter {
+    /// Starts the writer task on the current runtime, writing through `pool` (the
+    /// store's one writer connection).
+    pub fn start(pool: SqlitePool) -> Self {
+        let (tx, rx) = mpsc::channel(QUEUE);
+        let stats = Arc::new(WriteStats::default());
+        tokio::spawn(run(pool, rx, stats.clone()));
+        ProgressWriter { tx, stats }
+    }
+
+    /// Queues a report and waits until it is committed (or refused).
+    pub async fn write(
+        &self,
+        lease: LeaseId,
+        epochs: &[(u32, BTreeMap<String, f64>)],
+    ) -> Result<ProgressAck> {
+        let (reply, rx) = oneshot::channel();
+        self.stats.queued.fetch_add(1, Ordering::Relaxed);
+        let job = Job {
+            lease,
+            epochs: epochs.to_vec(),
+            queued: Instant::now(),
+            reply,
+        };
+        if self.tx.send(job).await.is_err() {
+            self.stats.queued.fetch_sub(1, Ordering::Relaxed);
+            return Err(Error::Server("the metric writer has stopped".into()));
+        }
+        rx.await
+            .map_err(|_| Error::Server("the metric writer stopped before answering".into()))?
+    }
+
+    /// The writer's counters.
+    pub fn stats(&self) -> &Arc<WriteStats> {
+        &self.stats
+    }
+}
+
+async fn run(pool: SqlitePool, mut rx: mpsc::Receiver<Job>, stats: Arc<WriteStats>) {
+    let mut warned: Option<Instant> = None;
+    while let Some(first) = rx.recv().await {
+        let mut jobs = vec![first];
+        while jobs.len() < MAX_BATCH {
+            match rx.try_recv() {
+                Ok(j) => jobs.push(j),
+                Err(_) => break,
+            }
+        }
+        stats.queued.fetch_sub(jobs.len() as u64, Ordering::Relaxed);
+        let lag = jobs
+            .iter()
+            .map(|j| j.queued.elapsed())
+            .max()
+            .unwrap_or_default();
+        stats
+            .last_lag_us
+            .store(lag.as_micros() as u64, Ordering::Relaxed);
+        if lag > LAG_WARN && warned.is_none_or(|w| w.elapsed() > Duration::from_secs(10)) {
+            warned = Some(Instant::now());
+            tracing::warn!(
+                lag_ms = lag.as_millis() as u64,
+                batch = jobs.len(),
+                queued = stats.queued.load(Ordering::Relaxed),
+                "metric writes are falling behind; workers batch their epochs meanwhile"
+            );
+        }
+        let outcomes = match write_batch(&pool, &jobs).await {
+            Ok(o) => o,
+            Err(e) => {
+                tracing::error!(error = %e, reports = jobs.len(), "a batch of metric reports failed");
+                let disk_full = e.is_disk_full();
+                let message = e.to_string();
+                jobs.iter()
+                    .map(|_| {
+                        Err(Error::Write {
+                            message: message.clone(),
+                            disk_full,
+                        })
+                    })
+                    .collect()
+            }
+        };
+        stats.batches.fetch_add(1, Ordering::Relaxed);
+        for (job, out) in jobs.into_iter().zip(outcomes) {
+            if let Ok((rows, ..)) = &out {
+                stats.rows.fetch_add(*rows as u64, Ordering::Relaxed);
+                stats.reports.fetch_add(1, Ordering::Relaxed);
+            }
+            // The caller may have gone (its call was cancelled); its rows are stored.
+            let _ = job.reply.send(out);
+        }
+    }
+}
+
+/// Writes a batch in one transaction. A report that is refused (unknown lease, closed
+/// cell, a bad value) gets its own error and writes nothing; a database error fails the
+/// whole batch (the caller answers every report with it).
+async fn write_batch(pool: &SqlitePool, jobs: &[Job]) -> Result<Vec<Result<ProgressAck>>> {
+    let mut tx = pool.begin_with("BEGIN IMMEDIATE").await?;
+    let mut out = Vec::with_capacity(jobs.len());
+    let mut rows: Vec<(i64, i64, &str, f64, i64)> = Vec::new();
+    for job in jobs {
+        let l = match lease_cell(&mut tx, job.lease).await {
+            Ok(l) => l,
+            Err(e) => {
+                out.push(Err(e));
+                continue;
+            }
+        };
+        if let Err(e) =
+            refuse_closed(l.cell, l.state).and_then(|()| validate::progress(l.total, &job.epochs))
+        {
+            out.push(Err(e));
+            continue;
+        }
+        let mut n = 0;
+        let mut last = 0;
+        for (epoch, values) in &job.epochs {
+            last = last.max(*epoch);
+            for (name, value) in values {
+                rows.push((l.cell.0, i64::from(*epoch), name, *value, job.lease.0));
+                n += 1;
+            }
+            if let Some(score) = values.get("eval/score") {
+                record_periodic_eval(&mut tx, l.cell, job.lease, *epoch, *score, values).await?;
+            }
+        }
+        sqlx::query("UPDATE cells SET epochs_done = MAX(epochs_done, ?) WHERE id = ?")
+            .bind(i64::from(last))
+            .bind(l.cell.0)
+            .execute(&mut *tx)
+            .await?;
+        out.push(Ok((n, l.cell, l.sweep)));
+    }
+    for chunk in rows.chunks(ROWS_PER_INSERT) {
+        let mut q: QueryBuilder<Sqlite> = QueryBuilder::new(
+            "INSERT INTO epoch_metrics (cell_id, epoch, name, value, attempt_id) ",
+        );
+        q.push_values(chunk, |mut b, r| {
+            b.push_bind(r.0)
+                .push_bind(r.1)
+                .push_bind(r.2)
+                .push_bind(r.3)
+                .push_bind(r.4);
+        });
+        q.push(
+            " ON CONFLICT (cell_id, epoch, name) DO UPDATE SET value = excluded.value, attempt_id = excluded.attempt_id",
+        );
+        q.build().execute(&mut *tx).await?;
+    }
+    tx.commit().await?;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::store::{SqliteStore, Store, WorkerInfo};
+    use crate::Error;
+    use gaitsweep_core::{LeaseId, ResolvedSpec, WorkerId};
+    use gaitsweep_model::{GaitScore, TerrainKind};
+    use std::collections::BTreeMap;
+
+    fn spec() -> ResolvedSpec {
+        ResolvedSpec {
+            name: "group-commit".into(),
+            robot: "anymal".into(),
+            terrains: vec![TerrainKind::Flat],
+            difficulty: None,
+            w1_values: vec![1.0, 2.0],
+            w2_values: vec![-1.0, -2.0, -3.0, -4.0],
+            agents_per_cell: 2,
+            epochs: 3,
+            checkpoint_every: 1,
+            seed: 1,
+            replicates: 1,
+            ppo_overrides: Default::default(),
+            eval_robots: 0,
+            eval_seconds: 0.0,
+            eval_every: 0,
+            search: Default::default(),
+        }
+    }
+
+    /// Many concurrent reports are committed together, each gets its own answer: a bad
+    /// value or a closed cell is refused alone and the rest of its batch is stored.
+    #[tokio::test]
+    async fn concurrent_reports_share_commits_and_a_bad_one_fails_alone() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = SqliteStore::open(&dir.path().join("db.sqlite"))
+            .await
+            .unwrap();
+        let w = WorkerId("w".into());
+        let info = WorkerInfo {
+            hostname: "h".into(),
+            cores: 8,
+            device: "cpu".into(),
+            slots: 8,
+            version: "t".into(),
+        };
+        store.register_worker(&w, &info, 0).await.unwrap();
+        store.create_sweep(&spec(), 0).await.unwrap();
+        let mut leases: Vec<LeaseId> = Vec::new();
+        for slot in 0..8 {
+            leases.push(store.lease_next(&w, slot, 1).await.unwrap().unwrap().lease);
+        }
+        // The first cell is finished: its later reports are refused.
+        let done = GaitScore {
+            robots: 2,
+            ..Default::default()
+        };
+        store
+            .report_result(leases[0], &done, 3, None, 2)
+            .await
+            .unwrap();
+        let before = store.write_stats();
+        let report = |lease: LeaseId, k: usize| {
+            let store = store.clone();
+            async move {
+                let value = if k == 13 { f64::NAN } else { k as f64 };
+                let m: BTreeMap<String, f64> = [(format!("m{k}"), value), ("x".into(), 1.0)].into();
+                store
+                    .record_progress(lease, &[((k % 3) as u32 + 1, m)])
+                    .await
+            }
+        };
+        let calls: Vec<_> = (0..160).map(|k| report(leases[k % 8], k)).collect();
+        let answers = futures::future::join_all(calls).await;
+        let mut stored = 0;
+        for (k, a) in answers.iter().enumerate() {
+            match (k % 8, k) {
+                (0, _) => assert!(matches!(a, Err(Error::CellClosed { .. })), "{k}: {a:?}"),
+                (_, 13) => assert!(matches!(a, Err(Error::BadRequest(_))), "{k}: {a:?}"),
+                _ => {
+                    assert_eq!(a.as_ref().unwrap().0, 2, "{k}");
+                    stored += 1;
+                }
+            }
+        }
+        let after = store.write_stats();
+        assert_eq!(after.reports - before.reports, stored);
+        assert!(
+            after.batches - before.batches < 160 / 4,
+            "reports waiting together are committed together: {before:?} -> {after:?}"
+        );
+        assert_eq!(after.queued, 0);
+        let names: i64 =
+            sqlx::query_scalar("SELECT COUNT(*) FROM epoch_metrics WHERE name LIKE 'm%'")
+                .fetch_one(store.reader())
+                .await
+                .unwrap();
+        assert_eq!(names as u64, stored, "every accepted report's rows, once");
+        let epochs_done: Vec<i64> = sqlx::query_scalar("SELECT epochs_done FROM cells ORDER BY id")
+            .fetch_all(store.reader())
+            .await
+            .unwrap();
+        assert_eq!(epochs_done[1..], [3; 7], "{epochs_done:?}");
+    }
+}
