@@ -493,6 +493,34 @@ mod tests {
         }
     }
 
+    /// The real recording kept in the repository (BENCHMARKS.md, "Search benchmark")
+    /// reads, validates and replays: its grid best is the recorded one and halving stays
+    /// at its rungs' share of the epochs.
+    #[test]
+    fn the_recorded_anymal_grid_replays() {
+        let rec: Recording = serde_json::from_str(include_str!(
+            "../../tests/data/search-grid-anymal-flat-4x7.json"
+        ))
+        .unwrap();
+        rec.validate().unwrap();
+        assert_eq!(
+            (rec.w1_values.len(), rec.w2_values.len(), rec.epochs),
+            (4, 7, 180)
+        );
+        let (best, mean) = rec.best();
+        assert_eq!(best, (1, 3));
+        assert!((mean - 0.3316).abs() < 1e-3, "{mean}");
+        let s = AshaSetup {
+            min_epochs: 20,
+            reduction: 3,
+            workers: 4,
+        };
+        assert_eq!(asha_rungs(&rec, &s).unwrap(), vec![20, 60, 180]);
+        let runs: Vec<Replay> = (0..20).map(|k| replay_asha(&rec, &s, k).unwrap()).collect();
+        let sum = summarise(&runs);
+        assert!(sum.epoch_fraction < 0.4, "{sum:?}");
+    }
+
     #[test]
     fn asha_spends_less_than_the_grid_and_finds_a_good_point() {
         let rec = synthetic(0.02);
