@@ -75,7 +75,6 @@ struct Stats {
     epochs_sent: AtomicU64,
     reports: AtomicU64,
     batched_reports: AtomicU64,
-    uploads: AtomicU64,
     lost_leases: AtomicU64,
     heartbeat: Mutex<Vec<f64>>,
     progress: Mutex<Vec<f64>>,
@@ -579,7 +578,6 @@ async fn upload(
         .await
         .with_context(|| format!("checkpoint upload of worker {worker} at epoch {epoch}"))?;
     stats.time(&stats.upload, t);
-    stats.uploads.fetch_add(1, Ordering::Relaxed);
     Ok(sha)
 }
 

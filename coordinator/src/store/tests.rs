@@ -747,3 +747,77 @@ async fn cmaes_halves_inside_each_generation() {
         "each generation: 3x1 + 1x2 + 1x6 epochs"
     );
 }
+
+/// Many concurrent reports are committed together, each gets its own answer: a bad
+/// value or a closed cell is refused alone and the rest of its batch is stored.
+#[tokio::test]
+async fn concurrent_reports_share_commits_and_a_bad_one_fails_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = SqliteStore::open(&dir.path().join("db.sqlite"))
+        .await
+        .unwrap();
+    let w = WorkerId("w".into());
+    let info = WorkerInfo {
+        hostname: "h".into(),
+        cores: 8,
+        device: "cpu".into(),
+        slots: 8,
+        version: "t".into(),
+    };
+    store.register_worker(&w, &info, 0).await.unwrap();
+    store
+        .create_sweep(&spec(2, 4, vec![TerrainKind::Flat]), 0)
+        .await
+        .unwrap();
+    let mut leases: Vec<LeaseId> = Vec::new();
+    for slot in 0..8 {
+        leases.push(store.lease_next(&w, slot, 1).await.unwrap().unwrap().lease);
+    }
+    // The first cell is finished: its later reports are refused.
+    let done = score(0.5);
+    store
+        .report_result(leases[0], &done, 3, None, 2)
+        .await
+        .unwrap();
+    let before = store.write_stats();
+    let report = |lease: LeaseId, k: usize| {
+        let store = store.clone();
+        async move {
+            let value = if k == 13 { f64::NAN } else { k as f64 };
+            let m: BTreeMap<String, f64> = [(format!("m{k}"), value), ("x".into(), 1.0)].into();
+            store
+                .record_progress(lease, &[((k % 3) as u32 + 1, m)])
+                .await
+        }
+    };
+    let calls: Vec<_> = (0..160).map(|k| report(leases[k % 8], k)).collect();
+    let answers = futures::future::join_all(calls).await;
+    let mut stored = 0;
+    for (k, a) in answers.iter().enumerate() {
+        match (k % 8, k) {
+            (0, _) => assert!(matches!(a, Err(Error::CellClosed { .. })), "{k}: {a:?}"),
+            (_, 13) => assert!(matches!(a, Err(Error::BadRequest(_))), "{k}: {a:?}"),
+            _ => {
+                assert_eq!(a.as_ref().unwrap().0, 2, "{k}");
+                stored += 1;
+            }
+        }
+    }
+    let after = store.write_stats();
+    assert_eq!(after.reports - before.reports, stored);
+    assert!(
+        after.batches - before.batches < 160 / 4,
+        "reports waiting together are committed together: {before:?} -> {after:?}"
+    );
+    assert_eq!(after.queued, 0);
+    let names: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM epoch_metrics WHERE name LIKE 'm%'")
+        .fetch_one(store.reader())
+        .await
+        .unwrap();
+    assert_eq!(names as u64, stored, "every accepted report's rows, once");
+    let epochs_done: Vec<i64> = sqlx::query_scalar("SELECT epochs_done FROM cells ORDER BY id")
+        .fetch_all(store.reader())
+        .await
+        .unwrap();
+    assert_eq!(epochs_done[1..], [3; 7], "{epochs_done:?}");
+}
