@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The README's main command: a small sweep end to end on localhost. Starts a coordinator
-# (embedded SQLite in a fresh data dir), one worker per core, runs scripts/demo-sweep.toml,
+# (embedded SQLite in a fresh data dir), a worker, runs scripts/demo-sweep.toml,
 # prints the score grid and the promoted cell, writes the report, and shuts everything
 # down, on success and on Ctrl-C.
 set -euo pipefail
@@ -38,9 +38,17 @@ for _ in $(seq 1 50); do
 done
 echo "live page: http://$(cat "$OUT/data/http.addr")/ (open it in a browser to watch the sweep)"
 
-WORKERS="${GAITSWEEP_DEMO_WORKERS:-$(nproc)}"
+# One worker with every core by default: successive halving leaves one cell training at
+# the end, which a worker of one core would train on half the machine. With
+# GAITSWEEP_DEMO_WORKERS=N each of the N workers gets nproc / N simulation threads.
+WORKERS="${GAITSWEEP_DEMO_WORKERS:-1}"
+threads=()
+if [ "$WORKERS" -gt 1 ]; then
+  per=$(( $(nproc) / WORKERS ))
+  threads=(--threads "$(( per > 0 ? per : 1 ))")
+fi
 for i in $(seq 1 "$WORKERS"); do
-  "$BIN/worker" --connect "$URL" --slots 1 --threads 1 --work-dir "$OUT/work-$i" > "$OUT/worker-$i.log" 2>&1 &
+  "$BIN/worker" --connect "$URL" --slots 1 "${threads[@]}" --work-dir "$OUT/work-$i" > "$OUT/worker-$i.log" 2>&1 &
   pids+=($!)
 done
 echo "started $WORKERS workers (logs in $OUT)"

@@ -57,4 +57,16 @@ mod tests {
         .unwrap();
         assert!(resolve(&bad_ppo).unwrap_err().to_string().contains("bogus"));
     }
+
+    #[test]
+    fn the_demo_spec_resolves_from_any_directory() {
+        // The test runs in coordinator/: the spec's robot path is found in the source tree.
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/demo-sweep.toml");
+        let spec = SweepSpec::from_toml(&std::fs::read_to_string(path).unwrap()).unwrap();
+        let r = resolve(&spec).unwrap();
+        assert_eq!(r.robot, "bench/learning-proof");
+        assert_eq!(r.cell_count(), 4);
+        assert_eq!(r.rungs(), vec![50, 200]);
+        assert_eq!(r.ppo_overrides["final_noise_std"], 0.05);
+    }
 }

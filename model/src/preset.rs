@@ -103,6 +103,22 @@ pub struct CommandConfig {
     pub max_yaw_rate: f32,
     /// Commands are resampled this often (s).
     pub resample_seconds: f32,
+    /// A drawn forward speed below this (m/s) is commanded as 0: the robot stands and turns
+    /// to its heading (legged_gym's `_resample_commands` zeroes commands under 0.2 m/s).
+    /// Default 0: every drawn speed is commanded.
+    #[serde(default)]
+    pub zero_speed_below: f32,
+}
+
+impl CommandConfig {
+    /// The forward speed commanded for a speed drawn from `forward_speed`.
+    pub fn forward_command(&self, drawn: f32) -> f32 {
+        if drawn.abs() < self.zero_speed_below {
+            0.0
+        } else {
+            drawn
+        }
+    }
 }
 
 /// Fixed reward weights (everything but w1 and w2).
@@ -471,10 +487,18 @@ pub struct PresetFile {
 }
 
 /// The directory of a robot's preset: `robot` itself when it is a path (contains `/`),
-/// else `robots_dir()/robot`; an unknown name is an error listing the known robots.
+/// else `robots_dir()/robot`; an unknown name is an error listing the known robots. A
+/// relative path that does not exist from the current directory is taken from the directory
+/// above `robots_dir()` (the source tree), so that a spec naming `bench/learning-proof`
+/// resolves the same in the coordinator and in workers started from anywhere.
 pub fn preset_dir(robot: &str) -> Result<PathBuf> {
     let dir = if robot.contains('/') {
-        PathBuf::from(robot)
+        let path = PathBuf::from(robot);
+        if path.is_relative() && !path.join("preset.toml").is_file() {
+            robots_dir().join("..").join(path)
+        } else {
+            path
+        }
     } else {
         robots_dir().join(robot)
     };

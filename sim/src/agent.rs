@@ -108,9 +108,10 @@ impl Agent {
 
     pub(crate) fn sample_command(&mut self, p: &Preset) {
         let c = &p.commands;
-        self.cmd.speed = self
+        let drawn = self
             .rng
             .random_range(c.forward_speed[0]..=c.forward_speed[1]);
+        self.cmd.speed = c.forward_command(drawn);
         self.cmd.heading = self.rng.random_range(c.heading[0]..=c.heading[1]);
     }
 

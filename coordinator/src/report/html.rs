@@ -60,7 +60,8 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         o,
         "<p>Robot <b>{}</b>, terrains <b>{}</b>{}, state <b>{}</b>: {} of {} cells scored. \
          Grid: w1 (velocity-tracking weight) = {}; w2 (log10 of the torque-penalty weight) = {}. \
-         The gait score is J = mean(track \u{2212} effort \u{2212} tilt) + progress (higher is better).</p>\n",
+         The gait score is J = mean(track \u{2212} effort \u{2212} tilt) + progress (higher is better).</p>\n\
+         <p>Budget: {}.</p>\n",
         esc(&d.robot),
         esc(&terrains),
         d.difficulty.map(|x| format!(" (difficulty {x})")).unwrap_or_default(),
@@ -69,6 +70,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         d.cells.len(),
         d.w1_values.iter().map(|v| fmt_w(*v)).collect::<Vec<_>>().join(", "),
         d.w2_values.iter().map(|v| fmt_w(*v)).collect::<Vec<_>>().join(", "),
+        esc(&d.budget),
     );
 
     o.push_str("<h2>Promoted policy</h2>\n");

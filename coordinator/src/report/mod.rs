@@ -119,6 +119,8 @@ pub struct ReportData {
     /// (`([w1_lo, w2_lo], [w1_hi, w2_hi])`): its cells are candidates (`w1_index` =
     /// generation), not grid points, and the report draws them instead of grid pictures.
     pub evolution: Option<([f64; 2], [f64; 2])>,
+    /// What the sweep was given to spend: robots, epochs, search, seeds, evaluation.
+    pub budget: String,
 }
 
 impl ReportData {
@@ -248,6 +250,48 @@ pub async fn open_db(data_dir: &Path) -> anyhow::Result<sqlx::SqlitePool> {
         .with_context(|| format!("open {} read-only", path.display()))
 }
 
+/// The budget a sweep was given, in words: robots and epochs per cell, how the search spends
+/// them, replicates, the evaluation rollout and any PPO overrides.
+pub fn budget_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
+    use gaitsweep_core::Search;
+    let search = match spec.search {
+        Search::Grid => "every cell trains all its epochs".to_string(),
+        Search::Asha { reduction, .. } => format!(
+            "successive halving (ASHA, reduction {reduction}) with rungs at epochs {}",
+            spec.rungs()
+                .iter()
+                .map(u32::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        Search::Cmaes {
+            population,
+            generations,
+            ..
+        } => format!("CMA-ES, {generations} generations of {population} candidates"),
+    };
+    let ppo = if spec.ppo_overrides.is_empty() {
+        String::new()
+    } else {
+        let o: Vec<String> = spec
+            .ppo_overrides
+            .iter()
+            .map(|(k, v)| format!("{k} = {v}"))
+            .collect();
+        format!("; PPO overrides: {}", o.join(", "))
+    };
+    format!(
+        "{} robots per cell, up to {} PPO epochs per cell ({search}), {} seed{} per grid point; \
+         evaluation: deterministic policy, {} robots x {} s{ppo}",
+        spec.agents_per_cell,
+        spec.epochs,
+        spec.replicates,
+        if spec.replicates == 1 { "" } else { "s" },
+        spec.eval_robots,
+        spec.eval_seconds,
+    )
+}
+
 /// Loads everything the report of `sweep` shows.
 pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportData> {
     let row = sqlx::query("SELECT id, name, robot, state, spec_json FROM sweeps WHERE id = ?")
@@ -269,6 +313,7 @@ pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportDat
         promotions: Vec::new(),
         evolution: matches!(spec.search, gaitsweep_core::Search::Cmaes { .. })
             .then(|| spec.bounds()),
+        budget: budget_text(&spec),
     };
 
     let sql = format!(

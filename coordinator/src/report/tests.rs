@@ -83,6 +83,7 @@ fn synthetic() -> ReportData {
         cells,
         promotions: vec![],
         evolution: None,
+        budget: "64 robots per cell".into(),
     }
 }
 
@@ -385,6 +386,12 @@ async fn a_sweep_stored_by_the_coordinator_is_reported() {
     .unwrap();
     let html = std::fs::read_to_string(out.join("index.html")).unwrap();
     assert!(html.contains("No gait GIF"), "{html}");
+    assert!(
+        html.contains(
+            "Budget: 2 robots per cell, up to 3 PPO epochs per cell (every cell trains all its epochs), 1 seed per grid point"
+        ),
+        "the report states the sweep's budget: {html}"
+    );
     assert_png(&out.join("score_stairs.png"), 700, 500);
     assert_png(&out.join("overlap.png"), 700, 500);
 }
