@@ -301,7 +301,10 @@ mod tests {
     #[test]
     fn small_forward_commands_are_zeroed_only_when_the_preset_asks() {
         let a = Preset::load("anymal").unwrap();
-        assert_eq!(a.commands.zero_speed_below, 0.0, "off in the shipped preset");
+        assert_eq!(
+            a.commands.zero_speed_below, 0.0,
+            "off in the shipped preset"
+        );
         assert_eq!(a.commands.forward_command(0.05), 0.05);
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(
