@@ -43,6 +43,11 @@ fn score(s: f64) -> GaitScore {
 }
 
 async fn setup() -> (tempfile::TempDir, SqliteStore, WorkerId) {
+    setup_with_slots(2).await
+}
+
+/// A store in a temp dir with one registered worker of `slots` slots.
+async fn setup_with_slots(slots: u32) -> (tempfile::TempDir, SqliteStore, WorkerId) {
     let dir = tempfile::tempdir().unwrap();
     let store = SqliteStore::open(&dir.path().join("db.sqlite"))
         .await
@@ -52,7 +57,7 @@ async fn setup() -> (tempfile::TempDir, SqliteStore, WorkerId) {
         hostname: "h".into(),
         cores: 2,
         device: "cpu".into(),
-        slots: 2,
+        slots,
         version: "t".into(),
     };
     store.register_worker(&w, &info, 0).await.unwrap();
@@ -752,19 +757,7 @@ async fn cmaes_halves_inside_each_generation() {
 /// value or a closed cell is refused alone and the rest of its batch is stored.
 #[tokio::test]
 async fn concurrent_reports_share_commits_and_a_bad_one_fails_alone() {
-    let dir = tempfile::tempdir().unwrap();
-    let store = SqliteStore::open(&dir.path().join("db.sqlite"))
-        .await
-        .unwrap();
-    let w = WorkerId("w".into());
-    let info = WorkerInfo {
-        hostname: "h".into(),
-        cores: 8,
-        device: "cpu".into(),
-        slots: 8,
-        version: "t".into(),
-    };
-    store.register_worker(&w, &info, 0).await.unwrap();
+    let (_dir, store, w) = setup_with_slots(8).await;
     store
         .create_sweep(&spec(2, 4, vec![TerrainKind::Flat]), 0)
         .await
