@@ -299,27 +299,28 @@ mod tests {
     }
 
     #[test]
-    fn small_forward_commands_are_zeroed_only_when_the_preset_asks() {
+    fn small_forward_commands_are_zeroed_as_legged_gym_unless_a_preset_turns_it_off() {
+        for robot in ["anymal", "heavy"] {
+            let c = Preset::load(robot).unwrap().commands;
+            assert_eq!(c.zero_speed_below, 0.2, "{robot}: legged_gym's threshold");
+            assert_eq!(c.forward_command(0.0), 0.0);
+            assert_eq!(c.forward_command(0.19), 0.0);
+            assert_eq!(c.forward_command(0.2), 0.2);
+            assert_eq!(c.forward_command(1.7), 1.7);
+        }
         let a = Preset::load("anymal").unwrap();
-        assert_eq!(
-            a.commands.zero_speed_below, 0.0,
-            "off in the shipped preset"
-        );
-        assert_eq!(a.commands.forward_command(0.05), 0.05);
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(
             dir.path().join("preset.toml"),
             format!(
-                "base = {:?}\n[commands]\nzero_speed_below = 0.2\n",
+                "base = {:?}\n[commands]\nzero_speed_below = 0.0\n",
                 robots_dir().join("anymal").display().to_string()
             ),
         )
         .unwrap();
         let c = Preset::load_from_dir(dir.path()).unwrap().commands;
         assert_eq!(c.forward_speed, a.commands.forward_speed);
-        assert_eq!(c.forward_command(0.0), 0.0);
-        assert_eq!(c.forward_command(0.19), 0.0);
-        assert_eq!(c.forward_command(0.2), 0.2);
+        assert_eq!(c.forward_command(0.05), 0.05, "off when a preset sets 0");
         assert_eq!(c.forward_command(1.7), 1.7);
     }
 
