@@ -14,5 +14,13 @@ if ! command -v chromium > /dev/null 2>&1; then
     sudo apt-get update -qq && sudo apt-get install -y -qq chromium > /dev/null
   fi
 fi
+# The store's conformance suite and the end-to-end test on PostgreSQL run against a
+# throwaway cluster (Debian's postgresql package), stopped and removed at the end.
+PG_DIR="$(mktemp -d)"
+stop_pg() { scripts/pg-cluster.sh stop "$PG_DIR" || true; rm -rf "$PG_DIR"; }
+trap stop_pg EXIT
+GAITSWEEP_TEST_PG="$(scripts/pg-cluster.sh start "$PG_DIR")"
+export GAITSWEEP_TEST_PG
+echo "PostgreSQL for the tests: $GAITSWEEP_TEST_PG"
 cargo build --release --workspace --bins
 cargo test --release --workspace --no-fail-fast "$@"

@@ -86,8 +86,10 @@ impl Error {
                 source.kind() == std::io::ErrorKind::StorageFull
                     || source.raw_os_error() == Some(28)
             }
-            // SQLITE_FULL (13): "database or disk is full".
-            Error::Db(sqlx::Error::Database(d)) => d.code().as_deref() == Some("13"),
+            // SQLITE_FULL (13): "database or disk is full"; PostgreSQL's disk_full (53100).
+            Error::Db(sqlx::Error::Database(d)) => {
+                matches!(d.code().as_deref(), Some("13") | Some("53100"))
+            }
             Error::Write { disk_full, .. } => *disk_full,
             _ => false,
         }

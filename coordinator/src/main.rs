@@ -20,7 +20,7 @@ struct Args {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Serve the coordinator (gRPC) with its SQLite database in the data dir.
+    /// Serve the coordinator (gRPC) with its SQLite database in the data dir (or PostgreSQL: --database).
     Serve(ServeArgs),
     /// Write a sweep's report (heatmaps, 3D surface, learning curves, gait GIF, index.html) from the data dir's database.
     Report(gaitsweep_coordinator::report::ReportArgs),
@@ -36,9 +36,13 @@ struct ServeArgs {
     /// Address to listen on; port 0 picks a free port (written to DATA_DIR/coordinator.addr).
     #[arg(long, default_value = "127.0.0.1:50051")]
     listen: SocketAddr,
-    /// Directory for the database and checkpoints.
+    /// Directory for the checkpoints and, by default, the SQLite database.
     #[arg(long)]
     data_dir: PathBuf,
+    /// The database: a PostgreSQL URL (postgres://user:password@host:port/db) or a SQLite
+    /// file path; default DATA_DIR/gaitsweep.sqlite.
+    #[arg(long, env = "GAITSWEEP_DATABASE")]
+    database: Option<String>,
     /// Require this access token on every RPC.
     #[arg(long, env = "GAITSWEEP_TOKEN")]
     token: Option<String>,
@@ -76,8 +80,14 @@ fn main() -> anyhow::Result<()> {
     rt.block_on(async move {
         match args.cmd {
             Cmd::Serve(a) => {
+                let database = a
+                    .database
+                    .as_deref()
+                    .map(gaitsweep_coordinator::store::DatabaseUrl::parse)
+                    .transpose()?;
                 let cfg = gaitsweep_coordinator::serve::ServeConfig {
                     listen: a.listen,
+                    database,
                     data_dir: a.data_dir,
                     token: a.token,
                     tls: a.tls_cert.zip(a.tls_key),

@@ -6,7 +6,7 @@ use crate::auth::TokenCheck;
 use crate::blobs::Blobs;
 use crate::error::io;
 use crate::service::{now_ms, sweeps::SweepApi, worker::WorkerApi, Coordinator, Limits};
-use crate::store::{AttemptEnd, SqliteStore, Store};
+use crate::store::{AttemptEnd, DatabaseUrl, SqlStore, Store};
 use crate::{Error, Result};
 use gaitsweep_core::pb::{self, sweep_event::Kind};
 use std::future::Future;
@@ -24,8 +24,10 @@ pub const ADDR_FILE: &str = "coordinator.addr";
 pub struct ServeConfig {
     /// Address to listen on (port 0: any free port).
     pub listen: SocketAddr,
-    /// Directory of the database and the checkpoints.
+    /// Directory of the checkpoints (and of the SQLite database unless `database` is set).
     pub data_dir: PathBuf,
+    /// The database (`--database`); `None`: `gaitsweep.sqlite` in the data dir.
+    pub database: Option<DatabaseUrl>,
     /// Access token; `None` disables access control.
     pub token: Option<String>,
     /// PEM certificate chain and private key for TLS.
@@ -50,7 +52,14 @@ pub async fn serve(
 ) -> Result<()> {
     std::fs::create_dir_all(&cfg.data_dir)
         .map_err(io(format!("create data dir {}", cfg.data_dir.display())))?;
-    let store = SqliteStore::open(&cfg.data_dir.join("gaitsweep.sqlite")).await?;
+    let database = cfg
+        .database
+        .clone()
+        .unwrap_or_else(|| DatabaseUrl::Sqlite(cfg.data_dir.join(crate::report::DB_FILE)));
+    let store = SqlStore::connect(&database)
+        .await
+        .map_err(|e| Error::Server(format!("open the database {}: {e}", database.redacted())))?;
+    tracing::info!(database = %database.redacted(), backend = %store.backend(), "database open");
     let blobs = Blobs::new(&cfg.data_dir, cfg.max_checkpoint_bytes)?;
     let limits = Limits {
         lease_ms: cfg.lease.as_millis() as i64,

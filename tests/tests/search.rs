@@ -11,9 +11,9 @@ use std::time::Duration;
 const SWEEP_TIMEOUT: Duration = Duration::from_secs(600);
 
 /// The cell promoted over all terrains, from SQL.
-async fn promoted_cell(db: &sqlx::SqlitePool, sweep: i64) -> i64 {
+async fn promoted_cell(db: &sqlx::AnyPool, sweep: i64) -> i64 {
     sqlx::query_scalar(
-        "SELECT cell_id FROM promotions WHERE sweep_id = ? AND terrain = '' ORDER BY id DESC LIMIT 1",
+        "SELECT cell_id FROM promotions WHERE sweep_id = $1 AND terrain = '' ORDER BY id DESC LIMIT 1",
     )
     .bind(sweep)
     .fetch_one(db)
@@ -97,19 +97,20 @@ async fn asha_continues_the_best_cell_from_its_rung_and_stops_the_rest() {
     // The continued cell resumed from its rung checkpoint, logged a periodic evaluation at
     // epoch 2 and was scored at the full budget; stopped cells keep their rung epoch.
     let resumed: Vec<i64> = sqlx::query_scalar(
-        "SELECT resumed_from_epoch FROM attempts WHERE cell_id = ? AND state = 'done' ORDER BY id",
+        "SELECT resumed_from_epoch FROM attempts WHERE cell_id = $1 AND state = 'done' ORDER BY id",
     )
     .bind(best)
     .fetch_all(&db)
     .await
     .unwrap();
     assert_eq!(resumed, vec![0, 1]);
-    let periodic: Vec<i64> =
-        sqlx::query_scalar("SELECT epoch FROM evaluations WHERE kind = 'periodic' AND cell_id = ?")
-            .bind(best)
-            .fetch_all(&db)
-            .await
-            .unwrap();
+    let periodic: Vec<i64> = sqlx::query_scalar(
+        "SELECT epoch FROM evaluations WHERE kind = 'periodic' AND cell_id = $1",
+    )
+    .bind(best)
+    .fetch_all(&db)
+    .await
+    .unwrap();
     assert_eq!(periodic, vec![2]);
     let cells: Vec<(i64, String, i64, Option<i64>)> = sqlx::query_as(
         "SELECT c.id, c.state, c.epochs_done, s.epochs FROM cells c LEFT JOIN scores s ON s.cell_id = c.id ORDER BY c.id",
@@ -213,7 +214,7 @@ async fn asha_survives_a_killed_worker_and_a_restarted_coordinator_between_rungs
         .unwrap();
     assert_eq!(evals, 4, "three at rung 0, one at rung 1");
     let (epochs, scores): (i64, i64) =
-        sqlx::query_as("SELECT MAX(epochs), COUNT(*) FROM scores WHERE cell_id = ?")
+        sqlx::query_as("SELECT MAX(epochs), COUNT(*) FROM scores WHERE cell_id = $1")
             .bind(best)
             .fetch_one(&db)
             .await
@@ -221,7 +222,7 @@ async fn asha_survives_a_killed_worker_and_a_restarted_coordinator_between_rungs
     assert_eq!((epochs, scores), (40, 1));
     // The continued cell's epochs were trained once each, across its attempts.
     let metrics: i64 =
-        sqlx::query_scalar("SELECT COUNT(DISTINCT epoch) FROM epoch_metrics WHERE cell_id = ?")
+        sqlx::query_scalar("SELECT COUNT(DISTINCT epoch) FROM epoch_metrics WHERE cell_id = $1")
             .bind(best)
             .fetch_one(&db)
             .await

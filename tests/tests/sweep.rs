@@ -1,6 +1,7 @@
 //! Real-process sweeps: two workers finish a 2x2 sweep; a worker killed mid-cell is
 //! replaced and its cell resumes from its checkpoint; a coordinator killed mid-sweep is
-//! restarted and the sweep completes without losing or duplicating a score; a worker whose
+//! restarted and the sweep completes without losing or duplicating a score (both also with
+//! the coordinator's database on PostgreSQL); a worker whose
 //! coordinator lost its database registers again; a worker stopped with SIGTERM gives its
 //! cell back at once.
 
@@ -52,7 +53,7 @@ async fn two_workers_finish_a_2x2_sweep() {
     for (cell, _, sha) in &scores {
         let sha = sha.as_ref().expect("final checkpoint stored");
         let (size, path): (i64, String) =
-            sqlx::query_as("SELECT size, path FROM checkpoints WHERE sha256 = ?")
+            sqlx::query_as("SELECT size, path FROM checkpoints WHERE sha256 = $1")
                 .bind(sha)
                 .fetch_one(&db)
                 .await
@@ -64,12 +65,13 @@ async fn two_workers_finish_a_2x2_sweep() {
             sha,
             "stored checkpoint content matches its hash"
         );
-        let epochs: i64 =
-            sqlx::query_scalar("SELECT COUNT(DISTINCT epoch) FROM epoch_metrics WHERE cell_id = ?")
-                .bind(cell)
-                .fetch_one(&db)
-                .await
-                .unwrap();
+        let epochs: i64 = sqlx::query_scalar(
+            "SELECT COUNT(DISTINCT epoch) FROM epoch_metrics WHERE cell_id = $1",
+        )
+        .bind(cell)
+        .fetch_one(&db)
+        .await
+        .unwrap();
         assert_eq!(epochs, 2, "learning curve of cell {cell}");
     }
     // The load bench sends exactly the metric set a real worker reports per epoch.
@@ -169,7 +171,7 @@ async fn two_workers_finish_a_2x2_sweep() {
         String::from_utf8_lossy(&out.stderr)
     );
     let rows: i64 = sqlx::query_scalar(
-        "SELECT COUNT(*) FROM epoch_metrics m JOIN cells c ON c.id = m.cell_id WHERE c.sweep_id = ?",
+        "SELECT COUNT(*) FROM epoch_metrics m JOIN cells c ON c.id = m.cell_id WHERE c.sweep_id = $1",
     )
     .bind(sweep.sweep_id)
     .fetch_one(&db)
@@ -207,9 +209,25 @@ print(len(runs), n, runs[0])
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn killed_worker_cell_resumes_on_another_worker() {
+    killed_worker_cell_resumes(Db::Sqlite).await
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn killed_worker_cell_resumes_on_another_worker_on_postgres() {
+    killed_worker_cell_resumes(Db::Postgres).await
+}
+
+async fn killed_worker_cell_resumes(on: Db) {
     let _g = heavy();
     let tmp = tempfile::tempdir().unwrap();
-    let coord = Coord::start(tmp.path(), "127.0.0.1:0", &["--lease-seconds", "2"]).await;
+    let database = on.fresh().await;
+    let coord = Coord::start_on(
+        tmp.path(),
+        "127.0.0.1:0",
+        database.as_deref(),
+        &["--lease-seconds", "2"],
+    )
+    .await;
     let mut c = coord.sweeps().await;
     let sweep = create(&mut c, tiny_spec(&[4.0], &[-5.0], LONG_EPOCHS)).await;
     let mut a = start_worker(tmp.path(), &coord.url(), "a");
@@ -352,9 +370,19 @@ async fn stopped_worker_gives_its_cell_back_at_once() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn coordinator_killed_and_restarted_mid_sweep_completes() {
+    coordinator_killed_and_restarted(Db::Sqlite).await
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn coordinator_killed_and_restarted_mid_sweep_completes_on_postgres() {
+    coordinator_killed_and_restarted(Db::Postgres).await
+}
+
+async fn coordinator_killed_and_restarted(on: Db) {
     let _g = heavy();
     let tmp = tempfile::tempdir().unwrap();
-    let mut coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
+    let database = on.fresh().await;
+    let mut coord = Coord::start_on(tmp.path(), "127.0.0.1:0", database.as_deref(), &[]).await;
     let addr = coord.addr.clone();
     let mut c = coord.sweeps().await;
     let sweep = create(&mut c, tiny_spec(&[2.0], &[-6.0, -3.0], LONG_EPOCHS)).await;
@@ -391,7 +419,7 @@ async fn coordinator_killed_and_restarted_mid_sweep_completes() {
         },
     )
     .await;
-    let coord = Coord::start(tmp.path(), &addr, &[]).await;
+    let coord = Coord::start_on(tmp.path(), &addr, database.as_deref(), &[]).await;
     let done = wait_done(&coord, sweep.sweep_id, SWEEP_TIMEOUT, &[&coord.proc, &w]).await;
     assert_eq!(done.cells_done, 2);
     let db = coord.db().await;
@@ -401,7 +429,7 @@ async fn coordinator_killed_and_restarted_mid_sweep_completes() {
         .unwrap();
     assert_eq!(scores, 2, "no score lost or duplicated");
     let per_cell: i64 = sqlx::query_scalar(
-        "SELECT MAX(n) FROM (SELECT COUNT(*) AS n FROM scores GROUP BY cell_id)",
+        "SELECT MAX(n) FROM (SELECT COUNT(*) AS n FROM scores GROUP BY cell_id) AS per_cell",
     )
     .fetch_one(&db)
     .await
@@ -466,7 +494,7 @@ async fn replicates_train_each_point_k_times_and_promote_the_best_mean() {
     let db = coord.db().await;
     let reps: Vec<(i64, i64, i64, f64)> = sqlx::query_as(
         "SELECT c.w1_index, c.replicate, c.seed, s.score FROM cells c JOIN scores s ON s.cell_id = c.id \
-         WHERE c.sweep_id = ? ORDER BY c.w1_index, c.replicate",
+         WHERE c.sweep_id = $1 ORDER BY c.w1_index, c.replicate",
     )
     .bind(sweep.sweep_id)
     .fetch_all(&db)
@@ -484,7 +512,7 @@ async fn replicates_train_each_point_k_times_and_promote_the_best_mean() {
     let mean = |w1: i64| reps.iter().filter(|r| r.0 == w1).map(|r| r.3).sum::<f64>() / 2.0;
     let best_w1 = if mean(0) >= mean(1) { 0 } else { 1 };
     let (cell_id, promoted): (i64, f64) = sqlx::query_as(
-        "SELECT cell_id, score FROM promotions WHERE sweep_id = ? AND terrain = '' ORDER BY id DESC LIMIT 1",
+        "SELECT cell_id, score FROM promotions WHERE sweep_id = $1 AND terrain = '' ORDER BY id DESC LIMIT 1",
     )
     .bind(sweep.sweep_id)
     .fetch_one(&db)
@@ -497,7 +525,7 @@ async fn replicates_train_each_point_k_times_and_promote_the_best_mean() {
         mean(1)
     );
     let (w1_index, score): (i64, f64) = sqlx::query_as(
-        "SELECT c.w1_index, s.score FROM cells c JOIN scores s ON s.cell_id = c.id WHERE c.id = ?",
+        "SELECT c.w1_index, s.score FROM cells c JOIN scores s ON s.cell_id = c.id WHERE c.id = $1",
     )
     .bind(cell_id)
     .fetch_one(&db)

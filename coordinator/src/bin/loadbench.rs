@@ -10,8 +10,10 @@
 //! acknowledged was stored and no lease was lost.
 //!
 //! `loadbench --workers 1000 --seconds 60` starts `coordinator serve` from the same
-//! directory as this binary with a temporary data dir; `--connect URL` uses a running one
-//! (then the coordinator's CPU, memory and database are not measured).
+//! directory as this binary with a temporary data dir (`--postgres URL`: its database on
+//! that PostgreSQL server); `--connect URL` uses a running one (then the coordinator's
+//! CPU, memory and database are not measured). The coordinator's CPU and memory are its
+//! own process's: a PostgreSQL server's are not included.
 
 use anyhow::{bail, Context};
 use clap::Parser;
@@ -62,6 +64,11 @@ struct Args {
     /// Use a running coordinator instead of starting one.
     #[arg(long)]
     connect: Option<String>,
+    /// Keep the coordinator's database on this PostgreSQL server (a URL of any database on
+    /// it, e.g. scripts/pg-cluster.sh's): the bench creates a fresh database there and
+    /// starts the coordinator with `--database`. Default: SQLite in the temporary data dir.
+    #[arg(long)]
+    postgres: Option<String>,
     /// Extra arguments for the coordinator this bench starts (e.g. "--lease-seconds 60").
     #[arg(long, allow_hyphen_values = true)]
     serve_args: Option<String>,
@@ -98,15 +105,44 @@ fn main() -> anyhow::Result<()> {
     rt.block_on(run(args))
 }
 
-/// The coordinator this bench started: its process, data dir and the database file.
+/// The coordinator this bench started: its process, data dir and its PostgreSQL database
+/// (`None`: the data dir's SQLite file).
 struct Server {
     child: KillOnDrop,
     dir: TempDir,
+    postgres: Option<String>,
 }
 
 impl Server {
-    fn db(&self) -> PathBuf {
+    /// Where the database is, for the output.
+    fn db_name(&self) -> String {
+        match &self.postgres {
+            Some(u) => gaitsweep_coordinator::store::DatabaseUrl::Postgres(u.clone()).redacted(),
+            None => self.db_file().display().to_string(),
+        }
+    }
+
+    fn db_file(&self) -> PathBuf {
         self.dir.0.join("gaitsweep.sqlite")
+    }
+
+    /// The database's size in bytes (SQLite: the file and its WAL).
+    async fn db_bytes(&self) -> anyhow::Result<u64> {
+        match &self.postgres {
+            None => Ok(database_bytes(&self.db_file())),
+            Some(_) => {
+                let db = self.open().await?;
+                let n: i64 = sqlx::query_scalar("SELECT pg_database_size(current_database())")
+                    .fetch_one(&db)
+                    .await?;
+                db.close().await;
+                Ok(n as u64)
+            }
+        }
+    }
+
+    async fn open(&self) -> anyhow::Result<sqlx::AnyPool> {
+        gaitsweep_coordinator::report::open_db(&self.dir.0, self.postgres.as_deref()).await
     }
 }
 
@@ -122,13 +158,27 @@ async fn start_server(args: &Args) -> anyhow::Result<(Server, String)> {
     let dir = std::env::temp_dir().join(format!("gaitsweep-loadbench-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let dir = TempDir(dir);
-    let extra: Vec<String> = args
+    let postgres = match &args.postgres {
+        Some(server) => Some(
+            gaitsweep_coordinator::store::backend::create_postgres_database(
+                server,
+                &format!("gs_loadbench_{}", std::process::id()),
+            )
+            .await
+            .context("create the bench's database on --postgres")?,
+        ),
+        None => None,
+    };
+    let mut extra: Vec<String> = args
         .serve_args
         .as_deref()
         .unwrap_or("")
         .split_whitespace()
         .map(String::from)
         .collect();
+    if let Some(u) = &postgres {
+        extra.extend(["--database".to_string(), u.clone()]);
+    }
     let child = Command::new(&bin)
         .args(["serve", "--listen", "127.0.0.1:0", "--data-dir"])
         .arg(&dir.0)
@@ -152,7 +202,14 @@ async fn start_server(args: &Args) -> anyhow::Result<(Server, String)> {
         }
         tokio::time::sleep(Duration::from_millis(50)).await;
     };
-    Ok((Server { child, dir }, format!("http://{addr}")))
+    Ok((
+        Server {
+            child,
+            dir,
+            postgres,
+        },
+        format!("http://{addr}"),
+    ))
 }
 
 fn range(min: f64, max: f64, count: usize) -> Option<pb::Axis> {
@@ -215,7 +272,10 @@ async fn run(args: Args) -> anyhow::Result<()> {
     let stats = Arc::new(Stats::default());
     let pid = server.as_ref().map(|s| s.child.0.id());
     let usage0 = pid.map(ProcUsage::of).unwrap_or_default();
-    let db0 = server.as_ref().map_or(0, |s| database_bytes(&s.db()));
+    let db0 = match &server {
+        Some(s) => s.db_bytes().await?,
+        None => 0,
+    };
     let t0 = Instant::now();
     let mut tasks = tokio::task::JoinSet::new();
     for (i, ch) in channels.into_iter().enumerate() {
@@ -266,10 +326,13 @@ async fn run(args: Args) -> anyhow::Result<()> {
         .await?
         .into_inner();
     let stored = match &server {
-        Some(srv) => Some(stored_counts(&srv.db()).await?),
+        Some(srv) => Some(stored_counts(&srv.open().await?).await?),
         None => None,
     };
-    let db1 = server.as_ref().map_or(0, |s| database_bytes(&s.db()));
+    let db1 = match &server {
+        Some(s) => s.db_bytes().await?,
+        None => 0,
+    };
 
     let ld = |m: &Mutex<Vec<f64>>| {
         let mut v = m.lock().expect("stats lock").clone();
@@ -352,7 +415,7 @@ async fn run(args: Args) -> anyhow::Result<()> {
             "database growth         {:.1} MB in the phase, {:.2} GB per hour ({})",
             growth / 1e6,
             growth / phase_s * 3600.0 / 1e9,
-            srv.db().display()
+            srv.db_name()
         );
         if rows_stored != rows_acked || expired > 0 {
             bail!("{rows_acked} metric rows acknowledged but {rows_stored} stored, {expired} attempts expired");
@@ -368,19 +431,12 @@ async fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// Metric rows and expired attempts in the bench's database.
-async fn stored_counts(db: &std::path::Path) -> anyhow::Result<(u64, u64)> {
-    use sqlx::sqlite::SqliteConnectOptions;
-    use sqlx::ConnectOptions;
-    let mut c = SqliteConnectOptions::new()
-        .filename(db)
-        .read_only(true)
-        .connect()
-        .await?;
+async fn stored_counts(db: &sqlx::AnyPool) -> anyhow::Result<(u64, u64)> {
     let rows: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM epoch_metrics")
-        .fetch_one(&mut c)
+        .fetch_one(db)
         .await?;
     let expired: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM attempts WHERE state = 'expired'")
-        .fetch_one(&mut c)
+        .fetch_one(db)
         .await?;
     Ok((rows as u64, expired as u64))
 }

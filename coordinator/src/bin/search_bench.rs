@@ -30,6 +30,9 @@ enum Cmd {
         /// The coordinator's data dir.
         #[arg(long)]
         data_dir: PathBuf,
+        /// The coordinator's database when it is not the data dir's SQLite file.
+        #[arg(long, env = "GAITSWEEP_DATABASE")]
+        database: Option<String>,
         /// Sweep id (a full grid, every point scored).
         #[arg(long)]
         sweep: i64,
@@ -72,10 +75,11 @@ async fn main() -> anyhow::Result<()> {
     match Args::parse().cmd {
         Cmd::Export {
             data_dir,
+            database,
             sweep,
             terrain,
         } => {
-            let rec = export(&data_dir, sweep, terrain.as_deref()).await?;
+            let rec = export(&data_dir, database.as_deref(), sweep, terrain.as_deref()).await?;
             rec.validate().map_err(anyhow::Error::msg)?;
             println!("{}", serde_json::to_string_pretty(&rec)?);
             Ok(())
@@ -199,12 +203,13 @@ fn default_min_epochs(rec: &Recording, reduction: u32) -> anyhow::Result<u32> {
 
 async fn export(
     data_dir: &std::path::Path,
+    database: Option<&str>,
     sweep: i64,
     terrain: Option<&str>,
 ) -> anyhow::Result<Recording> {
-    let db = gaitsweep_coordinator::report::open_db(data_dir).await?;
+    let db = gaitsweep_coordinator::report::open_db(data_dir, database).await?;
     let (name, spec_json): (String, String) =
-        sqlx::query_as("SELECT name, spec_json FROM sweeps WHERE id = ?")
+        sqlx::query_as("SELECT name, spec_json FROM sweeps WHERE id = $1")
             .bind(sweep)
             .fetch_optional(&db)
             .await?
@@ -219,7 +224,7 @@ async fn export(
         .context("the sweep has no terrain")?;
     let rows: Vec<(i64, i64, i64, i64, f64)> = sqlx::query_as(
         "SELECT c.id, c.w1_index, c.w2_index, c.seed, s.score FROM cells c JOIN scores s ON s.cell_id = c.id \
-         WHERE c.sweep_id = ? AND c.terrain = ? ORDER BY c.w1_index, c.w2_index, c.replicate",
+         WHERE c.sweep_id = $1 AND c.terrain = $2 ORDER BY c.w1_index, c.w2_index, c.replicate",
     )
     .bind(sweep)
     .bind(&terrain)
@@ -227,7 +232,7 @@ async fn export(
     .await?;
     let evals: Vec<(i64, i64, f64)> = sqlx::query_as(
         "SELECT e.cell_id, e.epoch, e.score FROM evaluations e JOIN cells c ON c.id = e.cell_id \
-         WHERE c.sweep_id = ? ORDER BY e.cell_id, e.epoch",
+         WHERE c.sweep_id = $1 ORDER BY e.cell_id, e.epoch",
     )
     .bind(sweep)
     .fetch_all(&db)

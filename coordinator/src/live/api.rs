@@ -55,12 +55,13 @@ struct SweepSummary {
 
 pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
     let records = live.coord.store.list_sweeps().await?;
-    let done: BTreeMap<i64, i64> =
-        sqlx::query_as("SELECT sweep_id, SUM(epochs_done) FROM cells GROUP BY sweep_id")
-            .fetch_all(&live.db)
-            .await?
-            .into_iter()
-            .collect();
+    let done: BTreeMap<i64, i64> = sqlx::query_as(
+        "SELECT sweep_id, CAST(SUM(epochs_done) AS BIGINT) FROM cells GROUP BY sweep_id",
+    )
+    .fetch_all(&live.db)
+    .await?
+    .into_iter()
+    .collect();
     let now = now_ms();
     let out: Vec<SweepSummary> = records
         .iter()
@@ -142,7 +143,7 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
     let mut latest: BTreeMap<i64, (i64, f64, Option<f64>)> = BTreeMap::new();
     for (cell, epoch, score, fall) in sqlx::query_as::<_, (i64, i64, f64, Option<f64>)>(
         "SELECT e.cell_id, e.epoch, e.score, e.fall_rate FROM evaluations e JOIN cells c ON c.id = e.cell_id \
-         WHERE c.sweep_id = ? ORDER BY e.cell_id, e.epoch",
+         WHERE c.sweep_id = $1 ORDER BY e.cell_id, e.epoch",
     )
     .bind(id)
     .fetch_all(&live.db)
@@ -162,12 +163,15 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
             c
         })
         .collect();
-    let epochs: Option<i64> =
-        sqlx::query_scalar("SELECT json_extract(spec_json, '$.epochs') FROM sweeps WHERE id = ?")
+    let spec_json: Option<String> =
+        sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = $1")
             .bind(id)
             .fetch_optional(&live.db)
-            .await?
-            .flatten();
+            .await?;
+    let epochs = spec_json
+        .map(|j| crate::store::rows::spec_of(&j))
+        .transpose()?
+        .map(|s| s.epochs);
     Ok(Json(json!({
         "id": data.sweep_id,
         "search": if data.evolution.is_some() { "cmaes" } else { "grid" },
@@ -190,18 +194,19 @@ pub(crate) async fn cell(State(live): State<Live>, Path(id): Path<i64>) -> ApiRe
     let head = sqlx::query(
         "SELECT c.id, c.terrain, c.w1, c.w2, c.replicate, c.seed, c.state, c.epochs_done, \
          COALESCE(s.final_checkpoint_sha256, c.last_checkpoint_sha256) AS sha \
-         FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.id = ?",
+         FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.id = $1",
     )
     .bind(id)
     .fetch_optional(&live.db)
     .await?
     .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, format!("no cell {id}")))?;
     let mut curves: BTreeMap<String, Vec<(i64, f64)>> = BTreeMap::new();
-    for r in
-        sqlx::query("SELECT epoch, name, value FROM epoch_metrics WHERE cell_id = ? ORDER BY epoch")
-            .bind(id)
-            .fetch_all(&live.db)
-            .await?
+    for r in sqlx::query(
+        "SELECT epoch, name, value FROM epoch_metrics WHERE cell_id = $1 ORDER BY epoch",
+    )
+    .bind(id)
+    .fetch_all(&live.db)
+    .await?
     {
         let v: f64 = r.try_get("value")?;
         if v.is_finite() {
@@ -214,7 +219,7 @@ pub(crate) async fn cell(State(live): State<Live>, Path(id): Path<i64>) -> ApiRe
     let attempts: Vec<Value> = sqlx::query(
         "SELECT a.id, a.worker_id, w.hostname, a.state, a.resumed_from_epoch, a.started_unix_ms, \
          a.ended_unix_ms, a.error FROM attempts a LEFT JOIN workers w ON w.id = a.worker_id \
-         WHERE a.cell_id = ? ORDER BY a.id",
+         WHERE a.cell_id = $1 ORDER BY a.id",
     )
     .bind(id)
     .fetch_all(&live.db)
@@ -234,7 +239,7 @@ pub(crate) async fn cell(State(live): State<Live>, Path(id): Path<i64>) -> ApiRe
     })
     .collect();
     let evaluations: Vec<Value> = sqlx::query(
-        "SELECT epoch, kind, score, fall_rate, mean_vel_error FROM evaluations WHERE cell_id = ? ORDER BY epoch",
+        "SELECT epoch, kind, score, fall_rate, mean_vel_error FROM evaluations WHERE cell_id = $1 ORDER BY epoch",
     )
     .bind(id)
     .fetch_all(&live.db)
@@ -347,7 +352,7 @@ pub(crate) async fn checkpoint(
             format!("{sha:?} is not a sha256"),
         ));
     }
-    let path: Option<String> = sqlx::query_scalar("SELECT path FROM checkpoints WHERE sha256 = ?")
+    let path: Option<String> = sqlx::query_scalar("SELECT path FROM checkpoints WHERE sha256 = $1")
         .bind(&sha)
         .fetch_optional(&live.db)
         .await?;
@@ -400,6 +405,7 @@ pub(crate) async fn report_file(
             let args = crate::report::ReportArgs {
                 sweep: id,
                 data_dir: live.data_dir.clone(),
+                database: None,
                 out: dir.clone(),
                 worker: None,
                 no_gif: false,

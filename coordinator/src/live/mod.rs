@@ -12,7 +12,7 @@
 mod api;
 
 use crate::service::Coordinator;
-use crate::store::SqliteStore;
+use crate::store::SqlStore;
 use crate::{Error, Result};
 use axum::extract::{Request, State};
 use axum::http::{header, StatusCode};
@@ -34,8 +34,8 @@ const PAGE: &str = include_str!("page.html");
 /// What the handlers share.
 #[derive(Clone)]
 pub(crate) struct Live {
-    pub(crate) coord: Arc<Coordinator<SqliteStore>>,
-    pub(crate) db: sqlx::SqlitePool,
+    pub(crate) coord: Arc<Coordinator<SqlStore>>,
+    pub(crate) db: sqlx::AnyPool,
     pub(crate) data_dir: PathBuf,
     /// Held while the report's pictures are drawn.
     pub(crate) drawing: Arc<tokio::sync::Mutex<()>>,
@@ -45,7 +45,7 @@ pub(crate) struct Live {
 /// Serves the page on `listener` until `shutdown` resolves.
 pub async fn serve_http(
     listener: tokio::net::TcpListener,
-    coord: Arc<Coordinator<SqliteStore>>,
+    coord: Arc<Coordinator<SqlStore>>,
     data_dir: PathBuf,
     token: Option<String>,
     shutdown: impl Future<Output = ()> + Send + 'static,

@@ -19,14 +19,16 @@ mod plots;
 pub mod tensorboard;
 
 use crate::store::rows::{CellRow, CELL_COLUMNS};
+use crate::store::DatabaseUrl;
 use anyhow::Context;
 use gaitsweep_core::records::CellRecord;
 use gaitsweep_model::GaitScore;
-use sqlx::sqlite::{SqliteConnectOptions, SqlitePoolOptions};
+use sqlx::any::AnyPoolOptions;
+use sqlx::sqlite::SqliteConnectOptions;
+use sqlx::ConnectOptions;
 use sqlx::{FromRow, Row};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 pub use plots::{colormap, register_fonts};
 
@@ -230,24 +232,46 @@ impl ReportData {
     }
 }
 
-/// Opens the data dir's database read-only (WAL: works while the coordinator runs).
-pub async fn open_db(data_dir: &Path) -> anyhow::Result<sqlx::SqlitePool> {
-    let path = data_dir.join(DB_FILE);
-    if !path.is_file() {
+/// Opens the coordinator's database for reading: `database` (a PostgreSQL URL or a SQLite
+/// file, as `coordinator serve --database`) or else the data dir's SQLite file (read-only;
+/// WAL: works while the coordinator runs).
+pub async fn open_db(data_dir: &Path, database: Option<&str>) -> anyhow::Result<sqlx::AnyPool> {
+    sqlx::any::install_default_drivers();
+    let url = match database.map(DatabaseUrl::parse).transpose()? {
+        Some(DatabaseUrl::Postgres(u)) => {
+            return AnyPoolOptions::new()
+                .max_connections(1)
+                .connect(&u)
+                .await
+                .with_context(|| {
+                    format!("connect to {}", DatabaseUrl::Postgres(u.clone()).redacted())
+                });
+        }
+        Some(DatabaseUrl::Sqlite(path)) => path,
+        None => data_dir.join(DB_FILE),
+    };
+    if !url.is_file() {
         anyhow::bail!(
-            "no database at {}: is --data-dir the coordinator's data dir?",
-            path.display()
+            "no database at {}: is --data-dir the coordinator's data dir (or --database its database)?",
+            url.display()
         );
     }
     let opts = SqliteConnectOptions::new()
-        .filename(&path)
+        .filename(&url)
         .read_only(true)
-        .busy_timeout(Duration::from_secs(10));
-    SqlitePoolOptions::new()
+        .to_url_lossy();
+    AnyPoolOptions::new()
         .max_connections(1)
-        .connect_with(opts)
+        .after_connect(|conn, _| {
+            Box::pin(async move {
+                sqlx::Executor::execute(conn, "PRAGMA busy_timeout = 10000;")
+                    .await
+                    .map(|_| ())
+            })
+        })
+        .connect(opts.as_str())
         .await
-        .with_context(|| format!("open {} read-only", path.display()))
+        .with_context(|| format!("open {} read-only", url.display()))
 }
 
 /// The budget a sweep was given, in words: robots and epochs per cell, how the search spends
@@ -293,8 +317,8 @@ pub fn budget_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
 }
 
 /// Loads everything the report of `sweep` shows.
-pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportData> {
-    let row = sqlx::query("SELECT id, name, robot, state, spec_json FROM sweeps WHERE id = ?")
+pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> {
+    let row = sqlx::query("SELECT id, name, robot, state, spec_json FROM sweeps WHERE id = $1")
         .bind(sweep)
         .fetch_optional(db)
         .await?
@@ -321,7 +345,7 @@ pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportDat
          FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
          LEFT JOIN checkpoints fk ON fk.sha256 = s.final_checkpoint_sha256 \
          LEFT JOIN checkpoints lk ON lk.sha256 = c.last_checkpoint_sha256 \
-         WHERE c.sweep_id = ? ORDER BY c.terrain_index, c.w1_index, c.w2_index"
+         WHERE c.sweep_id = $1 ORDER BY c.terrain_index, c.w1_index, c.w2_index"
     );
     for r in sqlx::query(&sql).bind(sweep).fetch_all(db).await? {
         let checkpoint: Option<String> = r.try_get("ckpt_path")?;
@@ -348,7 +372,7 @@ pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportDat
     let names = CURVE_METRICS.map(|n| format!("'{n}'")).join(", ");
     let sql = format!(
         "SELECT m.cell_id, m.epoch, m.name, m.value FROM epoch_metrics m JOIN cells c ON c.id = m.cell_id \
-         WHERE c.sweep_id = ? AND m.name IN ({names}) ORDER BY m.cell_id, m.epoch"
+         WHERE c.sweep_id = $1 AND m.name IN ({names}) ORDER BY m.cell_id, m.epoch"
     );
     let mut by_cell: BTreeMap<i64, BTreeMap<String, Vec<(u32, f64)>>> = BTreeMap::new();
     for r in sqlx::query(&sql).bind(sweep).fetch_all(db).await? {
@@ -367,11 +391,12 @@ pub async fn load(db: &sqlx::SqlitePool, sweep: i64) -> anyhow::Result<ReportDat
     }
 
     let mut latest: BTreeMap<String, Promotion> = BTreeMap::new();
-    for r in
-        sqlx::query("SELECT terrain, cell_id, score FROM promotions WHERE sweep_id = ? ORDER BY id")
-            .bind(sweep)
-            .fetch_all(db)
-            .await?
+    for r in sqlx::query(
+        "SELECT terrain, cell_id, score FROM promotions WHERE sweep_id = $1 ORDER BY id",
+    )
+    .bind(sweep)
+    .fetch_all(db)
+    .await?
     {
         let p = Promotion {
             terrain: r.try_get("terrain")?,
@@ -472,6 +497,10 @@ pub struct ReportArgs {
     /// The coordinator's data dir (holds gaitsweep.sqlite and the checkpoints).
     #[arg(long)]
     pub data_dir: PathBuf,
+    /// The coordinator's database when it is not the data dir's SQLite file (as `serve
+    /// --database`).
+    #[arg(long, env = "GAITSWEEP_DATABASE")]
+    pub database: Option<String>,
     /// Output directory of the report.
     #[arg(long, default_value = "report")]
     pub out: PathBuf,
@@ -488,7 +517,7 @@ pub struct ReportArgs {
 
 /// Runs `coordinator report`.
 pub async fn run(a: ReportArgs) -> anyhow::Result<()> {
-    let db = open_db(&a.data_dir).await?;
+    let db = open_db(&a.data_dir, a.database.as_deref()).await?;
     let data = load(&db, a.sweep).await?;
     db.close().await;
     std::fs::create_dir_all(&a.out).with_context(|| format!("create {}", a.out.display()))?;

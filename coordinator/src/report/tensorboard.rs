@@ -15,6 +15,10 @@ pub struct TensorboardArgs {
     /// The coordinator's data dir (holds gaitsweep.sqlite).
     #[arg(long)]
     pub data_dir: PathBuf,
+    /// The coordinator's database when it is not the data dir's SQLite file (as `serve
+    /// --database`).
+    #[arg(long, env = "GAITSWEEP_DATABASE")]
+    pub database: Option<String>,
     /// The log dir to write (`tensorboard --logdir OUT`).
     #[arg(long, default_value = "tensorboard")]
     pub out: PathBuf,
@@ -26,13 +30,9 @@ pub fn run_name(terrain: &str, w1: f64, w2: f64, seed: u64) -> String {
 }
 
 /// Writes the log dir; returns the number of runs and of scalars written.
-pub async fn export(
-    db: &sqlx::SqlitePool,
-    sweep: i64,
-    out: &Path,
-) -> anyhow::Result<(usize, usize)> {
+pub async fn export(db: &sqlx::AnyPool, sweep: i64, out: &Path) -> anyhow::Result<(usize, usize)> {
     let cells =
-        sqlx::query("SELECT id, terrain, w1, w2, seed FROM cells WHERE sweep_id = ? ORDER BY id")
+        sqlx::query("SELECT id, terrain, w1, w2, seed FROM cells WHERE sweep_id = $1 ORDER BY id")
             .bind(sweep)
             .fetch_all(db)
             .await?;
@@ -50,7 +50,7 @@ pub async fn export(
             c.try_get::<i64, _>("seed")? as u64,
         );
         let rows = sqlx::query(
-            "SELECT epoch, name, value FROM epoch_metrics WHERE cell_id = ? ORDER BY epoch, name",
+            "SELECT epoch, name, value FROM epoch_metrics WHERE cell_id = $1 ORDER BY epoch, name",
         )
         .bind(id)
         .fetch_all(db)
@@ -88,7 +88,7 @@ pub async fn export(
 
 /// Runs `coordinator tensorboard`.
 pub async fn run(a: TensorboardArgs) -> anyhow::Result<()> {
-    let db = super::open_db(&a.data_dir).await?;
+    let db = super::open_db(&a.data_dir, a.database.as_deref()).await?;
     let (runs, scalars) = export(&db, a.sweep, &a.out).await?;
     db.close().await;
     println!(

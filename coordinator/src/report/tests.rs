@@ -3,7 +3,7 @@
 //! back and reported.
 
 use super::*;
-use crate::store::{SqliteStore, Store, WorkerInfo};
+use crate::store::{SqlStore, Store, WorkerInfo};
 use gaitsweep_core::records::CheckpointRecord;
 use gaitsweep_core::{ResolvedSpec, WorkerId};
 use gaitsweep_model::TerrainKind;
@@ -295,7 +295,7 @@ fn spec() -> ResolvedSpec {
 #[tokio::test]
 async fn a_sweep_stored_by_the_coordinator_is_reported() {
     let dir = tempfile::tempdir().unwrap();
-    let store = SqliteStore::open(&dir.path().join(DB_FILE)).await.unwrap();
+    let store = SqlStore::open(&dir.path().join(DB_FILE)).await.unwrap();
     let w = WorkerId("w".into());
     let info = WorkerInfo {
         hostname: "h".into(),
@@ -341,7 +341,7 @@ async fn a_sweep_stored_by_the_coordinator_is_reported() {
             .await
             .unwrap();
     }
-    let db = open_db(dir.path()).await.unwrap();
+    let db = open_db(dir.path(), None).await.unwrap();
     let d = load(&db, sweep.id.0).await.unwrap();
     assert_eq!(d.terrains, vec!["flat", "stairs"]);
     assert_eq!(d.w1_values, vec![2.0, 12.0]);
@@ -377,6 +377,7 @@ async fn a_sweep_stored_by_the_coordinator_is_reported() {
     run(ReportArgs {
         sweep: sweep.id.0,
         data_dir: dir.path().to_path_buf(),
+        database: None,
         out: out.clone(),
         worker: Some(dir.path().join("no-such-worker")),
         no_gif: false,
@@ -397,7 +398,7 @@ async fn a_sweep_stored_by_the_coordinator_is_reported() {
 }
 
 impl ReportData {
-    async fn load_missing_sweep_is_an_error(&self, db: &sqlx::SqlitePool) -> bool {
+    async fn load_missing_sweep_is_an_error(&self, db: &sqlx::AnyPool) -> bool {
         load(db, self.sweep_id + 1000).await.is_err()
     }
 }

@@ -1,10 +1,11 @@
-//! Storage behind one trait: everything the coordinator persists. The SQLite
-//! implementation is [`sqlite::SqliteStore`].
+//! Storage behind one trait: everything the coordinator persists. [`sql::SqlStore`]
+//! implements it on SQLite (the default) and PostgreSQL.
 
+pub mod backend;
 pub mod progress_writer;
 pub mod rows;
 mod search;
-pub mod sqlite;
+pub mod sql;
 #[cfg(test)]
 mod tests;
 
@@ -17,8 +18,9 @@ use gaitsweep_model::GaitScore;
 use std::collections::BTreeMap;
 use std::future::Future;
 
+pub use backend::{Backend, DatabaseUrl};
 pub use progress_writer::WriteSnapshot;
-pub use sqlite::SqliteStore;
+pub use sql::SqlStore;
 
 /// What a worker says about itself when it registers.
 #[derive(Debug, Clone)]

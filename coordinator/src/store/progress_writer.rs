@@ -5,11 +5,12 @@
 //! The queue's depth and the wait of its oldest report are the coordinator's write lag,
 //! logged when it grows and exposed through [`WriteStats`].
 
+use super::backend::{self, Backend};
 use super::search::record_periodic_eval;
-use super::sqlite::{lease_cell, refuse_closed};
+use super::sql::{lease_cell, refuse_closed};
 use crate::{validate, Error, Result};
 use gaitsweep_core::{CellId, LeaseId, SweepId};
-use sqlx::{QueryBuilder, Sqlite, SqlitePool};
+use sqlx::AnyPool;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -18,7 +19,8 @@ use tokio::sync::{mpsc, oneshot};
 
 /// Reports written in one transaction at most (bounds a transaction's time and memory).
 pub const MAX_BATCH: usize = 512;
-/// Rows per multi-row `INSERT` (5 parameters each, well below SQLite's 32,766).
+/// Rows per multi-row `INSERT` (5 parameters each, well below SQLite's 32,766 and
+/// PostgreSQL's 65,535).
 const ROWS_PER_INSERT: usize = 400;
 /// Reports that may wait before callers wait to enqueue (the backpressure a worker sees
 /// as a slower answer, never as an error).
@@ -90,10 +92,10 @@ pub struct ProgressWriter {
 impl ProgressWriter {
     /// Starts the writer task on the current runtime, writing through `pool` (the
     /// store's one writer connection).
-    pub fn start(pool: SqlitePool) -> Self {
+    pub fn start(backend: Backend, pool: AnyPool) -> Self {
         let (tx, rx) = mpsc::channel(QUEUE);
         let stats = Arc::new(WriteStats::default());
-        tokio::spawn(run(pool, rx, stats.clone()));
+        tokio::spawn(run(backend, pool, rx, stats.clone()));
         ProgressWriter { tx, stats }
     }
 
@@ -125,7 +127,7 @@ impl ProgressWriter {
     }
 }
 
-async fn run(pool: SqlitePool, mut rx: mpsc::Receiver<Job>, stats: Arc<WriteStats>) {
+async fn run(backend: Backend, pool: AnyPool, mut rx: mpsc::Receiver<Job>, stats: Arc<WriteStats>) {
     let mut warned: Option<Instant> = None;
     while let Some(first) = rx.recv().await {
         let mut jobs = vec![first];
@@ -153,7 +155,7 @@ async fn run(pool: SqlitePool, mut rx: mpsc::Receiver<Job>, stats: Arc<WriteStat
                 "metric writes are falling behind; workers batch their epochs meanwhile"
             );
         }
-        let outcomes = match write_batch(&pool, &jobs).await {
+        let outcomes = match write_batch(backend, &pool, &jobs).await {
             Ok(o) => o,
             Err(e) => {
                 tracing::error!(error = %e, reports = jobs.len(), "a batch of metric reports failed");
@@ -184,12 +186,17 @@ async fn run(pool: SqlitePool, mut rx: mpsc::Receiver<Job>, stats: Arc<WriteStat
 /// Writes a batch in one transaction. A report that is refused (unknown lease, closed
 /// cell, a bad value) gets its own error and writes nothing; a database error fails the
 /// whole batch (the caller answers every report with it).
-async fn write_batch(pool: &SqlitePool, jobs: &[Job]) -> Result<Vec<Result<ProgressAck>>> {
-    let mut tx = pool.begin_with("BEGIN IMMEDIATE").await?;
+async fn write_batch(
+    backend: Backend,
+    pool: &AnyPool,
+    jobs: &[Job],
+) -> Result<Vec<Result<ProgressAck>>> {
+    let mut tx = pool.begin_with(backend.begin_write()).await?;
+    let now_ms = backend::now_ms();
     let mut out = Vec::with_capacity(jobs.len());
     let mut rows: Vec<(i64, i64, &str, f64, i64)> = Vec::new();
     for job in jobs {
-        let l = match lease_cell(&mut tx, job.lease).await {
+        let l = match lease_cell(&mut tx, backend, job.lease).await {
             Ok(l) => l,
             Err(e) => {
                 out.push(Err(e));
@@ -211,32 +218,65 @@ async fn write_batch(pool: &SqlitePool, jobs: &[Job]) -> Result<Vec<Result<Progr
                 n += 1;
             }
             if let Some(score) = values.get("eval/score") {
-                record_periodic_eval(&mut tx, l.cell, job.lease, *epoch, *score, values).await?;
+                record_periodic_eval(&mut tx, l.cell, job.lease, *epoch, *score, values, now_ms)
+                    .await?;
             }
         }
-        sqlx::query("UPDATE cells SET epochs_done = MAX(epochs_done, ?) WHERE id = ?")
+        sqlx::query("UPDATE cells SET epochs_done = CASE WHEN epochs_done > $1 THEN epochs_done ELSE $1 END WHERE id = $2")
             .bind(i64::from(last))
             .bind(l.cell.0)
             .execute(&mut *tx)
             .await?;
         out.push(Ok((n, l.cell, l.sweep)));
     }
-    for chunk in rows.chunks(ROWS_PER_INSERT) {
-        let mut q: QueryBuilder<Sqlite> = QueryBuilder::new(
-            "INSERT INTO epoch_metrics (cell_id, epoch, name, value, attempt_id) ",
-        );
-        q.push_values(chunk, |mut b, r| {
-            b.push_bind(r.0)
-                .push_bind(r.1)
-                .push_bind(r.2)
-                .push_bind(r.3)
-                .push_bind(r.4);
+    // A batch may carry the same (cell, epoch, metric) twice (a retried report next to its
+    // first try); the later row wins, as it would row by row. PostgreSQL refuses one INSERT
+    // that updates a row twice, so the earlier copies are dropped first.
+    let mut last: std::collections::HashMap<(i64, i64, &str), usize> =
+        std::collections::HashMap::with_capacity(rows.len());
+    for (i, r) in rows.iter().enumerate() {
+        last.insert((r.0, r.1, r.2), i);
+    }
+    if last.len() < rows.len() {
+        let mut i = 0;
+        rows.retain(|r| {
+            let keep = last[&(r.0, r.1, r.2)] == i;
+            i += 1;
+            keep
         });
-        q.push(
-            " ON CONFLICT (cell_id, epoch, name) DO UPDATE SET value = excluded.value, attempt_id = excluded.attempt_id",
-        );
-        q.build().execute(&mut *tx).await?;
+    }
+    for chunk in rows.chunks(ROWS_PER_INSERT) {
+        let sql = metric_insert(chunk.len());
+        let mut q = sqlx::query(&sql);
+        for r in chunk {
+            q = q.bind(r.0).bind(r.1).bind(r.2).bind(r.3).bind(r.4);
+        }
+        q.execute(&mut *tx).await?;
     }
     tx.commit().await?;
     Ok(out)
+}
+
+/// The multi-row insert of `rows` metric rows, numbered placeholders (both backends).
+fn metric_insert(rows: usize) -> String {
+    let mut sql =
+        String::from("INSERT INTO epoch_metrics (cell_id, epoch, name, value, attempt_id) VALUES ");
+    for r in 0..rows {
+        let p = 5 * r;
+        if r > 0 {
+            sql.push_str(", ");
+        }
+        sql.push_str(&format!(
+            "(${}, ${}, ${}, ${}, ${})",
+            p + 1,
+            p + 2,
+            p + 3,
+            p + 4,
+            p + 5
+        ));
+    }
+    sql.push_str(
+        " ON CONFLICT (cell_id, epoch, name) DO UPDATE SET value = excluded.value, attempt_id = excluded.attempt_id",
+    );
+    sql
 }

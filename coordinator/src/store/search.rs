@@ -4,7 +4,7 @@
 //! attempt.
 
 use super::rows::spec_of;
-use super::sqlite::{
+use super::sql::{
     cell_tx, end_winning_attempt, finish_if_done, refuse_closed, require_uploaded, Tx,
 };
 use super::ResultOutcome;
@@ -40,7 +40,7 @@ pub(super) async fn rung_result(
     require_uploaded(tx, final_sha256, epochs, "rung").await?;
     sqlx::query(
         "INSERT INTO evaluations (cell_id, epoch, kind, attempt_id, score, track, effort, tilt, progress, \
-         fall_rate, mean_vel_error, robots, reported_unix_ms) VALUES (?, ?, 'rung', ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) \
+         fall_rate, mean_vel_error, robots, reported_unix_ms) VALUES ($1, $2, 'rung', $3, $4, $5, $6, $7, $8, $9, $10, $11, $12) \
          ON CONFLICT (cell_id, epoch) DO UPDATE SET kind = 'rung', attempt_id = excluded.attempt_id, \
          score = excluded.score, track = excluded.track, effort = excluded.effort, tilt = excluded.tilt, \
          progress = excluded.progress, fall_rate = excluded.fall_rate, mean_vel_error = excluded.mean_vel_error, \
@@ -69,7 +69,7 @@ pub(super) async fn rung_result(
     )
     .await?;
     sqlx::query(
-        "UPDATE cells SET state = 'paused', epochs_done = MAX(epochs_done, ?) WHERE id = ?",
+        "UPDATE cells SET state = 'paused', epochs_done = CASE WHEN epochs_done > $1 THEN epochs_done ELSE $1 END WHERE id = $2",
     )
     .bind(i64::from(target))
     .bind(cell_id.0)
@@ -96,7 +96,7 @@ pub(super) async fn apply_asha(
     sweep: SweepId,
     now_ms: i64,
 ) -> Result<Vec<RungDecisionRecord>> {
-    let spec_json: String = sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = ?")
+    let spec_json: String = sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = $1")
         .bind(sweep.0)
         .fetch_one(&mut **tx)
         .await?;
@@ -109,13 +109,13 @@ pub(super) async fn apply_asha(
     // compete with each other, not with earlier generations.
     let generations = matches!(spec.search, Search::Cmaes { .. });
     let states: Vec<(i64, String, i64)> =
-        sqlx::query_as("SELECT id, state, w1_index FROM cells WHERE sweep_id = ? ORDER BY id")
+        sqlx::query_as("SELECT id, state, w1_index FROM cells WHERE sweep_id = $1 ORDER BY id")
             .bind(sweep.0)
             .fetch_all(&mut **tx)
             .await?;
     let evals: Vec<(i64, i64, f64)> = sqlx::query_as(
         "SELECT e.cell_id, e.epoch, e.score FROM evaluations e JOIN cells c ON c.id = e.cell_id \
-         WHERE c.sweep_id = ? AND e.kind = 'rung'",
+         WHERE c.sweep_id = $1 AND e.kind = 'rung'",
     )
     .bind(sweep.0)
     .fetch_all(&mut **tx)
@@ -155,7 +155,7 @@ pub(super) async fn apply_asha(
     for d in due {
         let epoch = rungs[d.rung];
         sqlx::query(
-            "INSERT INTO rung_decisions (cell_id, rung, epoch, score, decision, decided_unix_ms) VALUES (?, ?, ?, ?, ?, ?)",
+            "INSERT INTO rung_decisions (cell_id, rung, epoch, score, decision, decided_unix_ms) VALUES ($1, $2, $3, $4, $5, $6)",
         )
         .bind(d.cell.0)
         .bind(d.rung as i64)
@@ -166,13 +166,13 @@ pub(super) async fn apply_asha(
         .execute(&mut **tx)
         .await?;
         if d.continued {
-            sqlx::query("UPDATE cells SET state = 'queued', target_epochs = ? WHERE id = ? AND state = 'paused'")
+            sqlx::query("UPDATE cells SET state = 'queued', target_epochs = $1 WHERE id = $2 AND state = 'paused'")
                 .bind(i64::from(rungs[d.rung + 1]))
                 .bind(d.cell.0)
                 .execute(&mut **tx)
                 .await?;
         } else {
-            sqlx::query("UPDATE cells SET state = 'stopped' WHERE id = ? AND state = 'paused'")
+            sqlx::query("UPDATE cells SET state = 'stopped' WHERE id = $1 AND state = 'paused'")
                 .bind(d.cell.0)
                 .execute(&mut **tx)
                 .await?;
@@ -205,12 +205,13 @@ pub(super) async fn record_periodic_eval(
     epoch: u32,
     score: f64,
     values: &BTreeMap<String, f64>,
+    now_ms: i64,
 ) -> Result<()> {
     let v = |k: &str| values.get(&format!("eval/{k}")).copied();
     sqlx::query(
         "INSERT INTO evaluations (cell_id, epoch, kind, attempt_id, score, track, effort, tilt, progress, \
-         fall_rate, mean_vel_error, robots, reported_unix_ms) VALUES (?, ?, 'periodic', ?, ?, ?, ?, ?, ?, ?, ?, ?, \
-         CAST(strftime('%s', 'now') AS INTEGER) * 1000) ON CONFLICT (cell_id, epoch) DO NOTHING",
+         fall_rate, mean_vel_error, robots, reported_unix_ms) VALUES ($1, $2, 'periodic', $3, $4, $5, $6, $7, $8, $9, $10, $11, \
+         $12) ON CONFLICT (cell_id, epoch) DO NOTHING",
     )
     .bind(cell.0)
     .bind(i64::from(epoch))
@@ -223,6 +224,7 @@ pub(super) async fn record_periodic_eval(
     .bind(v("fall_rate"))
     .bind(v("mean_vel_error"))
     .bind(v("robots").map(|r| r as i64))
+    .bind(now_ms)
     .execute(&mut **tx)
     .await?;
     Ok(())
@@ -259,7 +261,7 @@ pub(super) async fn insert_cells(
     for c in cells {
         sqlx::query(
             "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, replicate, seed, state, target_epochs) \
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'queued', ?)",
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, 'queued', $10)",
         )
         .bind(sweep.0)
         .bind(c.terrain_index as i64)
@@ -296,7 +298,7 @@ pub(super) fn first_generation(spec: &ResolvedSpec) -> Result<Vec<[f64; 2]>> {
 /// Nothing for other searches, an open generation or a sweep that is not running.
 pub(super) async fn apply_evolution(tx: &mut Tx, sweep: SweepId) -> Result<Option<(u32, usize)>> {
     let (spec_json, state): (String, String) =
-        sqlx::query_as("SELECT spec_json, state FROM sweeps WHERE id = ?")
+        sqlx::query_as("SELECT spec_json, state FROM sweeps WHERE id = $1")
             .bind(sweep.0)
             .fetch_one(&mut **tx)
             .await?;
@@ -309,7 +311,7 @@ pub(super) async fn apply_evolution(tx: &mut Tx, sweep: SweepId) -> Result<Optio
     }
     let rows: Vec<(i64, i64, String, Option<f64>)> = sqlx::query_as(
         "SELECT c.w1_index, c.w2_index, c.state, s.score FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
-         WHERE c.sweep_id = ? ORDER BY c.w1_index, c.w2_index, c.replicate",
+         WHERE c.sweep_id = $1 ORDER BY c.w1_index, c.w2_index, c.replicate",
     )
     .bind(sweep.0)
     .fetch_all(&mut **tx)
@@ -335,7 +337,7 @@ pub(super) async fn apply_evolution(tx: &mut Tx, sweep: SweepId) -> Result<Optio
         let rungs = spec.rungs();
         let evals: Vec<(i64, i64, i64, f64)> = sqlx::query_as(
             "SELECT c.w1_index, c.w2_index, e.epoch, e.score FROM evaluations e JOIN cells c ON c.id = e.cell_id \
-             WHERE c.sweep_id = ? AND e.kind = 'rung' ORDER BY e.epoch",
+             WHERE c.sweep_id = $1 AND e.kind = 'rung' ORDER BY e.epoch",
         )
         .bind(sweep.0)
         .fetch_all(&mut **tx)

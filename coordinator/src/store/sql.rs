@@ -1,6 +1,12 @@
-//! The SQLite implementation of [`Store`]: WAL, one writer connection whose transactions
-//! start with `BEGIN IMMEDIATE` (so they never fail on a busy snapshot), a pool of readers.
+//! The store on SQL: one implementation of [`Store`] for SQLite (the default: one file in
+//! the data dir) and PostgreSQL, through sqlx's `Any` driver. Both run every write on one
+//! writer connection, so write transactions never interleave (SQLite's own rule, kept on
+//! PostgreSQL so the two behave alike), and reads on a pool of their own. SQLite runs in WAL
+//! mode and opens write transactions with `BEGIN IMMEDIATE` (so they never fail on a busy
+//! snapshot). The SQL is the dialect both share ([`super::backend`]); each backend has its
+//! migrations (`migrations/` for SQLite, `migrations/postgres/`).
 
+use super::backend::{Backend, DatabaseUrl};
 use super::progress_writer::{ProgressWriter, WriteSnapshot};
 use super::rows::{spec_of, CellRow, SweepRow, CELL_COLUMNS, SWEEP_COLUMNS};
 use super::search::{self, apply_asha, rung_result};
@@ -12,41 +18,64 @@ use crate::{validate, Error, Result};
 use gaitsweep_core::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
 use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, SweepId, WorkerId};
 use gaitsweep_model::GaitScore;
-use sqlx::sqlite::{
-    SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous,
+use sqlx::any::{AnyConnectOptions, AnyPoolOptions, AnyRow};
+use sqlx::sqlite::SqliteConnectOptions;
+use sqlx::{
+    Any, AnyConnection, AnyPool, ConnectOptions, Connection, Executor, FromRow, Row, Transaction,
 };
-use sqlx::{Connection, FromRow, Row, Sqlite, SqliteConnection, SqlitePool, Transaction};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::str::FromStr;
-use std::time::Duration;
 
-/// The embedded migrations of `migrations/`.
+/// The embedded SQLite migrations of `migrations/`.
 pub static MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("../migrations");
+/// The embedded PostgreSQL migrations of `migrations/postgres/`.
+pub static PG_MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("../migrations/postgres");
 
-/// SQLite storage in one database file.
+/// Per-connection SQLite settings (the journal mode is stored in the file; the rest is not).
+const SQLITE_PRAGMAS: &str = "PRAGMA journal_mode = WAL; PRAGMA synchronous = NORMAL; \
+     PRAGMA foreign_keys = ON; PRAGMA busy_timeout = 10000;";
+
+/// The coordinator's storage: a SQLite file or a PostgreSQL database.
 #[derive(Clone)]
-pub struct SqliteStore {
-    write: SqlitePool,
-    read: SqlitePool,
+pub struct SqlStore {
+    backend: Backend,
+    write: AnyPool,
+    read: AnyPool,
     progress: ProgressWriter,
 }
 
-pub(super) type Tx = Transaction<'static, Sqlite>;
+pub(super) type Tx = Transaction<'static, Any>;
 
-impl SqliteStore {
-    /// Opens (creating if needed) the database file and applies the migrations.
+impl SqlStore {
+    /// Opens (creating if needed) the SQLite database file and applies the migrations.
     pub async fn open(path: &Path) -> Result<Self> {
-        let opts = SqliteConnectOptions::new()
+        Self::connect(&DatabaseUrl::Sqlite(path.to_path_buf())).await
+    }
+
+    /// Opens the database `url` names and applies its backend's migrations. A SQLite file
+    /// is created if missing; a PostgreSQL database must exist.
+    pub async fn connect(url: &DatabaseUrl) -> Result<Self> {
+        sqlx::any::install_default_drivers();
+        match url {
+            DatabaseUrl::Sqlite(path) => Self::open_sqlite(path).await,
+            DatabaseUrl::Postgres(u) => Self::open_postgres(u).await,
+        }
+    }
+
+    async fn open_sqlite(path: &Path) -> Result<Self> {
+        let url = SqliteConnectOptions::new()
             .filename(path)
             .create_if_missing(true)
-            .journal_mode(SqliteJournalMode::Wal)
-            .synchronous(SqliteSynchronous::Normal)
-            .foreign_keys(true)
-            .busy_timeout(Duration::from_secs(10));
+            .to_url_lossy();
+        let opts = AnyConnectOptions::from_url(&url)?;
         // Migrations that rebuild a table (SQLite's only way to change a constraint) need
         // foreign keys off while they run; they are checked once the migrations are done.
-        let mut mig = SqliteConnection::connect_with(&opts.clone().foreign_keys(false)).await?;
+        let mut mig = AnyConnection::connect_with(&opts).await?;
+        mig.execute(
+            "PRAGMA journal_mode = WAL; PRAGMA foreign_keys = OFF; PRAGMA busy_timeout = 10000;",
+        )
+        .await?;
         MIGRATOR.run(&mut mig).await?;
         let broken = sqlx::query("PRAGMA foreign_key_check")
             .fetch_all(&mut mig)
@@ -59,65 +88,110 @@ impl SqliteStore {
                 broken.len()
             )));
         }
-        let write = SqlitePoolOptions::new()
-            .max_connections(1)
-            // A failed write (a full disk) can leave the connection inside a transaction
-            // that SQLite already rolled back, and every later BEGIN on it fails. The ping
-            // waits for the rollback queued when the failed transaction was dropped; a
-            // connection still in a transaction after it is replaced by a fresh one.
-            .before_acquire(|conn, _| {
-                Box::pin(async move {
-                    conn.ping().await?;
-                    let healthy = !conn.is_in_transaction();
-                    if !healthy {
-                        tracing::warn!(
-                            "writer connection left inside a failed transaction; opening a new one"
-                        );
-                    }
-                    Ok(healthy)
-                })
+        let write = writer_pool()
+            .after_connect(|conn, _| {
+                Box::pin(async move { conn.execute(SQLITE_PRAGMAS).await.map(|_| ()) })
             })
             .connect_with(opts.clone())
             .await?;
-        let read = SqlitePoolOptions::new()
+        let read_url = SqliteConnectOptions::new()
+            .filename(path)
+            .read_only(true)
+            .to_url_lossy();
+        let read = AnyPoolOptions::new()
             .max_connections(4)
-            .connect_with(opts.read_only(true))
+            .after_connect(|conn, _| {
+                Box::pin(async move {
+                    conn.execute("PRAGMA busy_timeout = 10000;")
+                        .await
+                        .map(|_| ())
+                })
+            })
+            .connect_with(AnyConnectOptions::from_url(&read_url)?)
             .await?;
-        let progress = ProgressWriter::start(write.clone());
-        Ok(Self {
+        Ok(Self::with_pools(Backend::Sqlite, write, read))
+    }
+
+    async fn open_postgres(url: &str) -> Result<Self> {
+        let opts = AnyConnectOptions::from_str(url).map_err(|e| {
+            Error::BadRequest(format!(
+                "--database: {e}; expected postgres://user:password@host:port/database"
+            ))
+        })?;
+        let mut mig = AnyConnection::connect_with(&opts).await?;
+        PG_MIGRATOR.run(&mut mig).await?;
+        mig.close().await?;
+        let write = writer_pool().connect_with(opts.clone()).await?;
+        let read = AnyPoolOptions::new()
+            .max_connections(4)
+            .connect_with(opts)
+            .await?;
+        Ok(Self::with_pools(Backend::Postgres, write, read))
+    }
+
+    fn with_pools(backend: Backend, write: AnyPool, read: AnyPool) -> Self {
+        let progress = ProgressWriter::start(backend, write.clone());
+        Self {
+            backend,
             write,
             read,
             progress,
-        })
+        }
     }
 
-    /// The pool of read-only connections (the live page reads through it).
-    pub fn reader(&self) -> &SqlitePool {
+    /// The database behind the store.
+    pub fn backend(&self) -> Backend {
+        self.backend
+    }
+
+    /// The pool of read connections (the live page reads through it).
+    pub fn reader(&self) -> &AnyPool {
         &self.read
     }
 
     /// The writer pool, for tests that reach the connection (e.g. to fill the database).
     #[cfg(test)]
-    pub(crate) fn writer(&self) -> &SqlitePool {
+    pub(crate) fn writer(&self) -> &AnyPool {
         &self.write
     }
 
     async fn begin(&self) -> Result<Tx> {
-        Ok(self.write.begin_with("BEGIN IMMEDIATE").await?)
+        Ok(self.write.begin_with(self.backend.begin_write()).await?)
     }
 }
 
-fn cell_from_row(r: &SqliteRow) -> Result<CellRecord> {
+/// The one writer connection. A failed write (a full disk) can leave the connection inside
+/// a transaction that the database already rolled back, and every later BEGIN on it fails.
+/// The ping waits for the rollback queued when the failed transaction was dropped; a
+/// connection still in a transaction after it is replaced by a fresh one.
+fn writer_pool() -> AnyPoolOptions {
+    AnyPoolOptions::new()
+        .max_connections(1)
+        .before_acquire(|conn, _| {
+            Box::pin(async move {
+                conn.ping().await?;
+                let healthy = !conn.is_in_transaction();
+                if !healthy {
+                    tracing::warn!(
+                        "writer connection left inside a failed transaction; opening a new one"
+                    );
+                }
+                Ok(healthy)
+            })
+        })
+}
+
+fn cell_from_row(r: &AnyRow) -> Result<CellRecord> {
     CellRow::from_row(r)?.try_into()
 }
 
-fn sweep_from_row(r: &SqliteRow) -> Result<SweepRecord> {
+fn sweep_from_row(r: &AnyRow) -> Result<SweepRecord> {
     SweepRow::from_row(r)?.try_into()
 }
 
 pub(super) async fn cell_tx(tx: &mut Tx, id: CellId) -> Result<CellRecord> {
     let sql = format!(
-        "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.id = ?"
+        "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.id = $1"
     );
     let row = sqlx::query(&sql)
         .bind(id.0)
@@ -127,7 +201,7 @@ pub(super) async fn cell_tx(tx: &mut Tx, id: CellId) -> Result<CellRecord> {
 }
 
 async fn sweep_tx(tx: &mut Tx, id: SweepId) -> Result<SweepRecord> {
-    let sql = format!("SELECT {SWEEP_COLUMNS} FROM sweeps w WHERE w.id = ?");
+    let sql = format!("SELECT {SWEEP_COLUMNS} FROM sweeps w WHERE w.id = $1");
     let row = sqlx::query(&sql)
         .bind(id.0)
         .fetch_optional(&mut **tx)
@@ -150,16 +224,18 @@ pub(super) struct LeaseCell {
 }
 
 /// The cell, its state and its epochs for a lease id.
-pub(super) async fn lease_cell(tx: &mut Tx, lease: LeaseId) -> Result<LeaseCell> {
-    let row = sqlx::query(
+pub(super) async fn lease_cell(tx: &mut Tx, backend: Backend, lease: LeaseId) -> Result<LeaseCell> {
+    let sql = format!(
         "SELECT a.cell_id, c.sweep_id, c.state, a.state AS attempt_state, \
-         c.target_epochs AS epochs, json_extract(w.spec_json, '$.epochs') AS total FROM attempts a \
-         JOIN cells c ON c.id = a.cell_id JOIN sweeps w ON w.id = c.sweep_id WHERE a.id = ?",
-    )
-    .bind(lease.0)
-    .fetch_optional(&mut **tx)
-    .await?
-    .ok_or(Error::UnknownLease(lease))?;
+         c.target_epochs AS epochs, {} AS total FROM attempts a \
+         JOIN cells c ON c.id = a.cell_id JOIN sweeps w ON w.id = c.sweep_id WHERE a.id = $1",
+        backend.json_int("w.spec_json", "epochs")
+    );
+    let row = sqlx::query(&sql)
+        .bind(lease.0)
+        .fetch_optional(&mut **tx)
+        .await?
+        .ok_or(Error::UnknownLease(lease))?;
     Ok(LeaseCell {
         cell: CellId(row.try_get("cell_id")?),
         sweep: SweepId(row.try_get("sweep_id")?),
@@ -196,7 +272,7 @@ pub(super) async fn finish_if_done(
     now_ms: i64,
 ) -> Result<Option<SweepRecord>> {
     let open: i64 = sqlx::query_scalar(
-        "SELECT COUNT(*) FROM cells WHERE sweep_id = ? AND state IN ('queued', 'running', 'paused')",
+        "SELECT COUNT(*) FROM cells WHERE sweep_id = $1 AND state IN ('queued', 'running', 'paused')",
     )
     .bind(sweep.0)
     .fetch_one(&mut **tx)
@@ -205,7 +281,7 @@ pub(super) async fn finish_if_done(
         return Ok(None);
     }
     let changed = sqlx::query(
-        "UPDATE sweeps SET state = 'done', finished_unix_ms = ? WHERE id = ? AND state = 'running'",
+        "UPDATE sweeps SET state = 'done', finished_unix_ms = $1 WHERE id = $2 AND state = 'running'",
     )
     .bind(now_ms)
     .bind(sweep.0)
@@ -224,7 +300,7 @@ pub(super) async fn checkpoint_of(
     epoch: Option<i64>,
 ) -> Result<Option<CheckpointRecord>> {
     let Some(sha) = sha else { return Ok(None) };
-    let size: Option<i64> = sqlx::query_scalar("SELECT size FROM checkpoints WHERE sha256 = ?")
+    let size: Option<i64> = sqlx::query_scalar("SELECT size FROM checkpoints WHERE sha256 = $1")
         .bind(&sha)
         .fetch_optional(&mut **ex)
         .await?;
@@ -264,13 +340,13 @@ pub(super) async fn end_winning_attempt(
     now_ms: i64,
     why: &str,
 ) -> Result<()> {
-    sqlx::query("UPDATE attempts SET state = 'done', ended_unix_ms = ? WHERE id = ?")
+    sqlx::query("UPDATE attempts SET state = 'done', ended_unix_ms = $1 WHERE id = $2")
         .bind(now_ms)
         .bind(lease.0)
         .execute(&mut **tx)
         .await?;
     sqlx::query(
-        "UPDATE attempts SET state = 'cancelled', ended_unix_ms = ?, error = ? WHERE cell_id = ? AND state = 'running'",
+        "UPDATE attempts SET state = 'cancelled', ended_unix_ms = $1, error = $2 WHERE cell_id = $3 AND state = 'running'",
     )
     .bind(now_ms)
     .bind(why)
@@ -290,7 +366,7 @@ async fn promote_point(
 ) -> Result<Vec<PromotionRecord>> {
     let rows: Vec<(i64, String, Option<f64>)> = sqlx::query_as(
         "SELECT c.id, c.state, s.score FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
-         WHERE c.sweep_id = ? AND c.terrain_index = ? AND c.w1_index = ? AND c.w2_index = ? ORDER BY c.id",
+         WHERE c.sweep_id = $1 AND c.terrain_index = $2 AND c.w1_index = $3 AND c.w2_index = $4 ORDER BY c.id",
     )
     .bind(cell.sweep_id.0)
     .bind(i64::from(cell.terrain_index))
@@ -312,7 +388,7 @@ async fn promote_point(
         cell_tx(tx, point.cell).await?
     };
     let (sha, epochs): (Option<String>, i64) =
-        sqlx::query_as("SELECT final_checkpoint_sha256, epochs FROM scores WHERE cell_id = ?")
+        sqlx::query_as("SELECT final_checkpoint_sha256, epochs FROM scores WHERE cell_id = $1")
             .bind(point.cell.0)
             .fetch_one(&mut **tx)
             .await?;
@@ -331,14 +407,14 @@ async fn promote(
     let mut out = Vec::new();
     for terrain in ["", cell.terrain.as_str()] {
         let best: Option<(i64, f64)> = sqlx::query_as(
-            "SELECT cell_id, score FROM promotions WHERE sweep_id = ? AND terrain = ? ORDER BY id DESC LIMIT 1",
+            "SELECT cell_id, score FROM promotions WHERE sweep_id = $1 AND terrain = $2 ORDER BY id DESC LIMIT 1",
         )
         .bind(cell.sweep_id.0)
         .bind(terrain)
         .fetch_optional(&mut **tx)
         .await?;
         if sched::beats((cell.id, score), best.map(|(c, s)| (CellId(c), s))) {
-            sqlx::query("INSERT INTO promotions (sweep_id, terrain, cell_id, score, promoted_unix_ms) VALUES (?, ?, ?, ?, ?)")
+            sqlx::query("INSERT INTO promotions (sweep_id, terrain, cell_id, score, promoted_unix_ms) VALUES ($1, $2, $3, $4, $5)")
                 .bind(cell.sweep_id.0)
                 .bind(terrain)
                 .bind(cell.id.0)
@@ -358,11 +434,11 @@ async fn promote(
     Ok(out)
 }
 
-impl Store for SqliteStore {
+impl Store for SqlStore {
     async fn create_sweep(&self, spec: &ResolvedSpec, now_ms: i64) -> Result<SweepRecord> {
         let mut tx = self.begin().await?;
         let id: i64 = sqlx::query_scalar(
-            "INSERT INTO sweeps (name, robot, spec_json, state, created_unix_ms) VALUES (?, ?, ?, 'running', ?) RETURNING id",
+            "INSERT INTO sweeps (name, robot, spec_json, state, created_unix_ms) VALUES ($1, $2, $3, 'running', $4) RETURNING id",
         )
         .bind(&spec.name)
         .bind(&spec.robot)
@@ -393,7 +469,7 @@ impl Store for SqliteStore {
     }
 
     async fn sweep(&self, id: SweepId) -> Result<SweepRecord> {
-        let sql = format!("SELECT {SWEEP_COLUMNS} FROM sweeps w WHERE w.id = ?");
+        let sql = format!("SELECT {SWEEP_COLUMNS} FROM sweeps w WHERE w.id = $1");
         let row = sqlx::query(&sql)
             .bind(id.0)
             .fetch_optional(&self.read)
@@ -404,7 +480,7 @@ impl Store for SqliteStore {
     async fn cells(&self, id: SweepId) -> Result<Vec<CellRecord>> {
         self.sweep(id).await?;
         let sql = format!(
-            "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = ? \
+            "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 \
              ORDER BY c.terrain_index, c.w1_index, c.w2_index"
         );
         sqlx::query(&sql)
@@ -420,23 +496,23 @@ impl Store for SqliteStore {
         let mut tx = self.begin().await?;
         sweep_tx(&mut tx, id).await?;
         let leases: Vec<i64> = sqlx::query_scalar(
-            "SELECT a.id FROM attempts a JOIN cells c ON c.id = a.cell_id WHERE c.sweep_id = ? AND a.state = 'running'",
+            "SELECT a.id FROM attempts a JOIN cells c ON c.id = a.cell_id WHERE c.sweep_id = $1 AND a.state = 'running'",
         )
         .bind(id.0)
         .fetch_all(&mut *tx)
         .await?;
-        sqlx::query("UPDATE sweeps SET state = 'cancelled', finished_unix_ms = ? WHERE id = ? AND state = 'running'")
+        sqlx::query("UPDATE sweeps SET state = 'cancelled', finished_unix_ms = $1 WHERE id = $2 AND state = 'running'")
             .bind(now_ms)
             .bind(id.0)
             .execute(&mut *tx)
             .await?;
-        sqlx::query("UPDATE cells SET state = 'cancelled' WHERE sweep_id = ? AND state IN ('queued', 'running', 'paused')")
+        sqlx::query("UPDATE cells SET state = 'cancelled' WHERE sweep_id = $1 AND state IN ('queued', 'running', 'paused')")
             .bind(id.0)
             .execute(&mut *tx)
             .await?;
         sqlx::query(
-            "UPDATE attempts SET state = 'cancelled', ended_unix_ms = ? WHERE state = 'running' \
-             AND cell_id IN (SELECT id FROM cells WHERE sweep_id = ?)",
+            "UPDATE attempts SET state = 'cancelled', ended_unix_ms = $1 WHERE state = 'running' \
+             AND cell_id IN (SELECT id FROM cells WHERE sweep_id = $2)",
         )
         .bind(now_ms)
         .bind(id.0)
@@ -451,7 +527,7 @@ impl Store for SqliteStore {
         let mut tx = self.begin().await?;
         sqlx::query(
             "INSERT INTO workers (id, hostname, cores, device, slots, version, registered_unix_ms, last_seen_unix_ms) \
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8)",
         )
         .bind(&id.0)
         .bind(&info.hostname)
@@ -473,7 +549,7 @@ impl Store for SqliteStore {
         }
         let mut tx = self.begin().await?;
         for id in ids {
-            sqlx::query("UPDATE workers SET last_seen_unix_ms = ? WHERE id = ?")
+            sqlx::query("UPDATE workers SET last_seen_unix_ms = $1 WHERE id = $2")
                 .bind(now_ms)
                 .bind(&id.0)
                 .execute(&mut *tx)
@@ -490,7 +566,7 @@ impl Store for SqliteStore {
         now_ms: i64,
     ) -> Result<Option<LeaseGrant>> {
         let mut tx = self.begin().await?;
-        let slots: Option<i64> = sqlx::query_scalar("SELECT slots FROM workers WHERE id = ?")
+        let slots: Option<i64> = sqlx::query_scalar("SELECT slots FROM workers WHERE id = $1")
             .bind(&worker.0)
             .fetch_optional(&mut *tx)
             .await?;
@@ -526,7 +602,7 @@ impl Store for SqliteStore {
             return Ok(None);
         };
         let (sha, epoch): (Option<String>, Option<i64>) = sqlx::query_as(
-            "SELECT last_checkpoint_sha256, last_checkpoint_epoch FROM cells WHERE id = ?",
+            "SELECT last_checkpoint_sha256, last_checkpoint_epoch FROM cells WHERE id = $1",
         )
         .bind(cell_id.0)
         .fetch_one(&mut *tx)
@@ -534,7 +610,7 @@ impl Store for SqliteStore {
         let resume = checkpoint_of(&mut tx, sha, epoch).await?;
         let lease: i64 = sqlx::query_scalar(
             "INSERT INTO attempts (cell_id, worker_id, slot, state, resumed_from_epoch, started_unix_ms) \
-             VALUES (?, ?, ?, 'running', ?, ?) RETURNING id",
+             VALUES ($1, $2, $3, 'running', $4, $5) RETURNING id",
         )
         .bind(cell_id.0)
         .bind(&worker.0)
@@ -543,12 +619,12 @@ impl Store for SqliteStore {
         .bind(now_ms)
         .fetch_one(&mut *tx)
         .await?;
-        sqlx::query("UPDATE cells SET state = 'running', attempts = attempts + 1 WHERE id = ?")
+        sqlx::query("UPDATE cells SET state = 'running', attempts = attempts + 1 WHERE id = $1")
             .bind(cell_id.0)
             .execute(&mut *tx)
             .await?;
         let cell = cell_tx(&mut tx, cell_id).await?;
-        let spec_json: String = sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = ?")
+        let spec_json: String = sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = $1")
             .bind(cell.sweep_id.0)
             .fetch_one(&mut *tx)
             .await?;
@@ -581,7 +657,7 @@ impl Store for SqliteStore {
 
     async fn open_lease(&self, lease: LeaseId) -> Result<(CellId, SweepId)> {
         let mut tx = self.read.begin().await?;
-        let l = lease_cell(&mut tx, lease).await?;
+        let l = lease_cell(&mut tx, self.backend, lease).await?;
         refuse_closed(l.cell, l.state)?;
         Ok((l.cell, l.sweep))
     }
@@ -606,11 +682,11 @@ impl Store for SqliteStore {
         now_ms: i64,
     ) -> Result<()> {
         let mut tx = self.begin().await?;
-        let l = lease_cell(&mut tx, lease).await?;
+        let l = lease_cell(&mut tx, self.backend, lease).await?;
         let cell = l.cell;
         refuse_closed(cell, l.state)?;
         validate::checkpoint_epoch(l.epochs, ckpt.epoch)?;
-        sqlx::query("INSERT OR IGNORE INTO checkpoints (sha256, size, path, created_unix_ms) VALUES (?, ?, ?, ?)")
+        sqlx::query("INSERT INTO checkpoints (sha256, size, path, created_unix_ms) VALUES ($1, $2, $3, $4) ON CONFLICT (sha256) DO NOTHING")
             .bind(&ckpt.sha256)
             .bind(ckpt.size as i64)
             .bind(rel_path)
@@ -618,7 +694,7 @@ impl Store for SqliteStore {
             .execute(&mut *tx)
             .await?;
         sqlx::query(
-            "INSERT INTO cell_checkpoints (cell_id, epoch, sha256, attempt_id, unix_ms) VALUES (?, ?, ?, ?, ?) \
+            "INSERT INTO cell_checkpoints (cell_id, epoch, sha256, attempt_id, unix_ms) VALUES ($1, $2, $3, $4, $5) \
              ON CONFLICT (cell_id, epoch) DO UPDATE SET sha256 = excluded.sha256, attempt_id = excluded.attempt_id",
         )
         .bind(cell.0)
@@ -629,8 +705,8 @@ impl Store for SqliteStore {
         .execute(&mut *tx)
         .await?;
         sqlx::query(
-            "UPDATE cells SET last_checkpoint_sha256 = ?, last_checkpoint_epoch = ? \
-             WHERE id = ? AND (last_checkpoint_epoch IS NULL OR last_checkpoint_epoch <= ?)",
+            "UPDATE cells SET last_checkpoint_sha256 = $1, last_checkpoint_epoch = $2 \
+             WHERE id = $3 AND (last_checkpoint_epoch IS NULL OR last_checkpoint_epoch <= $4)",
         )
         .bind(&ckpt.sha256)
         .bind(ckpt.epoch as i64)
@@ -644,7 +720,7 @@ impl Store for SqliteStore {
 
     async fn checkpoint_path(&self, sha256: &str) -> Result<(u64, String)> {
         let row: Option<(i64, String)> =
-            sqlx::query_as("SELECT size, path FROM checkpoints WHERE sha256 = ?")
+            sqlx::query_as("SELECT size, path FROM checkpoints WHERE sha256 = $1")
                 .bind(sha256)
                 .fetch_optional(&self.read)
                 .await?;
@@ -669,13 +745,13 @@ impl Store for SqliteStore {
             epochs: target,
             total,
             ..
-        } = lease_cell(&mut tx, lease).await?;
+        } = lease_cell(&mut tx, self.backend, lease).await?;
         let rung_seen: Option<i64> =
-            sqlx::query_scalar("SELECT 1 FROM evaluations WHERE attempt_id = ? AND kind = 'rung'")
+            sqlx::query_scalar("SELECT 1 FROM evaluations WHERE attempt_id = $1 AND kind = 'rung'")
                 .bind(lease.0)
                 .fetch_optional(&mut *tx)
                 .await?;
-        let scored: Option<i64> = sqlx::query_scalar("SELECT 1 FROM scores WHERE cell_id = ?")
+        let scored: Option<i64> = sqlx::query_scalar("SELECT 1 FROM scores WHERE cell_id = $1")
             .bind(cell_id.0)
             .fetch_optional(&mut *tx)
             .await?;
@@ -706,7 +782,7 @@ impl Store for SqliteStore {
         sqlx::query(
             "INSERT INTO scores (cell_id, attempt_id, score, track, effort, tilt, progress, fall_rate, mean_vel_error, \
              mean_abs_torque, cost_of_transport, robots, epochs, final_checkpoint_sha256, reported_unix_ms) \
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15)",
         )
         .bind(cell_id.0)
         .bind(lease.0)
@@ -734,7 +810,7 @@ impl Store for SqliteStore {
         )
         .await?;
         sqlx::query(
-            "UPDATE cells SET state = 'done', epochs_done = MAX(epochs_done, ?) WHERE id = ?",
+            "UPDATE cells SET state = 'done', epochs_done = CASE WHEN epochs_done > $1 THEN epochs_done ELSE $1 END WHERE id = $2",
         )
         .bind(epochs as i64)
         .bind(cell_id.0)
@@ -769,7 +845,7 @@ impl Store for SqliteStore {
             state,
             attempt_state,
             ..
-        } = lease_cell(&mut tx, lease).await?;
+        } = lease_cell(&mut tx, self.backend, lease).await?;
         if attempt_state != "running" {
             let cell = cell_tx(&mut tx, cell_id).await?;
             return Ok(AttemptOutcome {
@@ -778,7 +854,7 @@ impl Store for SqliteStore {
                 finished: None,
             });
         }
-        sqlx::query("UPDATE attempts SET state = ?, ended_unix_ms = ?, error = ? WHERE id = ?")
+        sqlx::query("UPDATE attempts SET state = $1, ended_unix_ms = $2, error = $3 WHERE id = $4")
             .bind(end.as_str())
             .bind(now_ms)
             .bind(error)
@@ -786,14 +862,14 @@ impl Store for SqliteStore {
             .execute(&mut *tx)
             .await?;
         let others: i64 = sqlx::query_scalar(
-            "SELECT COUNT(*) FROM attempts WHERE cell_id = ? AND state = 'running'",
+            "SELECT COUNT(*) FROM attempts WHERE cell_id = $1 AND state = 'running'",
         )
         .bind(cell_id.0)
         .fetch_one(&mut *tx)
         .await?;
         if state == CellState::Running && others == 0 {
             let failures: i64 = sqlx::query_scalar(
-                "SELECT COUNT(*) FROM attempts WHERE cell_id = ? AND state IN ('failed', 'expired')",
+                "SELECT COUNT(*) FROM attempts WHERE cell_id = $1 AND state IN ('failed', 'expired')",
             )
             .bind(cell_id.0)
             .fetch_one(&mut *tx)
@@ -804,7 +880,7 @@ impl Store for SqliteStore {
                     sched::after_failure(failures as u32, max_attempts)
                 }
             };
-            sqlx::query("UPDATE cells SET state = ?, last_error = ? WHERE id = ?")
+            sqlx::query("UPDATE cells SET state = $1, last_error = $2 WHERE id = $3")
                 .bind(next.as_str())
                 .bind(error)
                 .bind(cell_id.0)
@@ -838,7 +914,7 @@ impl Store for SqliteStore {
             }
         }
         let row: Option<(i64, i64)> = sqlx::query_as(
-            "SELECT cell_id, promoted_unix_ms FROM promotions WHERE sweep_id = ? AND terrain = ? ORDER BY id DESC LIMIT 1",
+            "SELECT cell_id, promoted_unix_ms FROM promotions WHERE sweep_id = $1 AND terrain = $2 ORDER BY id DESC LIMIT 1",
         )
         .bind(id.0)
         .bind(terrain.unwrap_or(""))
@@ -847,7 +923,7 @@ impl Store for SqliteStore {
         let (cell_id, at) = row.ok_or(Error::NothingPromoted(id))?;
         let cell = cell_tx(&mut tx, CellId(cell_id)).await?;
         let (sha, epochs): (Option<String>, i64) =
-            sqlx::query_as("SELECT final_checkpoint_sha256, epochs FROM scores WHERE cell_id = ?")
+            sqlx::query_as("SELECT final_checkpoint_sha256, epochs FROM scores WHERE cell_id = $1")
                 .bind(cell_id)
                 .fetch_one(&mut *tx)
                 .await?;

@@ -1,5 +1,8 @@
-//! Storage tests on a real SQLite file: leasing, expiry and retries, idempotent reports,
-//! promotion, cancellation.
+//! The store's conformance suite: leasing, expiry and retries, idempotent reports,
+//! promotion, cancellation, successive halving, the evolutionary search and group commits,
+//! each run on a real SQLite file and on a real PostgreSQL server (a database of its own per
+//! test on the server `GAITSWEEP_TEST_PG` names; `scripts/test.sh` starts a throwaway one).
+//! A test that needs one backend's internals (SQLite's page limit) runs on that one only.
 
 use super::*;
 use crate::Error;
@@ -42,16 +45,20 @@ fn score(s: f64) -> GaitScore {
     }
 }
 
-async fn setup() -> (tempfile::TempDir, SqliteStore, WorkerId) {
+async fn setup() -> (tempfile::TempDir, SqlStore, WorkerId) {
     setup_with_slots(2).await
 }
 
 /// A store in a temp dir with one registered worker of `slots` slots.
-async fn setup_with_slots(slots: u32) -> (tempfile::TempDir, SqliteStore, WorkerId) {
+async fn setup_with_slots(slots: u32) -> (tempfile::TempDir, SqlStore, WorkerId) {
     let dir = tempfile::tempdir().unwrap();
-    let store = SqliteStore::open(&dir.path().join("db.sqlite"))
-        .await
-        .unwrap();
+    let backend = BACKEND.try_with(|b| *b).unwrap_or(Backend::Sqlite);
+    let url = match backend {
+        Backend::Sqlite => DatabaseUrl::Sqlite(dir.path().join("db.sqlite")),
+        Backend::Postgres => DatabaseUrl::Postgres(pg::fresh_database().await),
+    };
+    let store = SqlStore::connect(&url).await.unwrap();
+    assert_eq!(store.backend(), backend);
     let w = WorkerId("w1".into());
     let info = WorkerInfo {
         hostname: "h".into(),
@@ -64,7 +71,6 @@ async fn setup_with_slots(slots: u32) -> (tempfile::TempDir, SqliteStore, Worker
     (dir, store, w)
 }
 
-#[tokio::test]
 async fn expired_cells_are_retried_then_failed() {
     let (_d, store, w) = setup().await;
     let sweep = store
@@ -101,7 +107,6 @@ async fn expired_cells_are_retried_then_failed() {
     assert_eq!(store.sweep(sweep.id).await.unwrap().cells_failed, 1);
 }
 
-#[tokio::test]
 async fn results_are_idempotent_and_promote_the_best() {
     let (_d, store, w) = setup().await;
     let sweep = store
@@ -160,7 +165,6 @@ async fn results_are_idempotent_and_promote_the_best() {
     assert_eq!(rec.best_cell, Some(best.cell.id));
 }
 
-#[tokio::test]
 async fn resume_points_at_the_latest_checkpoint_and_cancel_stops_all() {
     let (_d, store, w) = setup().await;
     let sweep = store
@@ -237,7 +241,6 @@ async fn the_writer_recovers_after_the_disk_was_full() {
 
 /// Fault-injection finding: a result on the lease of a cell that had failed for good
 /// turned it `done`.
-#[tokio::test]
 async fn a_failed_cell_stays_failed() {
     let (_d, store, w) = setup().await;
     store
@@ -267,7 +270,7 @@ async fn a_failed_cell_stays_failed() {
     let cells = store.cells(SweepId(1)).await.unwrap();
     assert_eq!(cells[0].state, CellState::Failed);
     assert!(cells[0].score.is_none());
-    let state: String = sqlx::query_scalar("SELECT state FROM attempts WHERE id = ?")
+    let state: String = sqlx::query_scalar("SELECT state FROM attempts WHERE id = $1")
         .bind(first.0)
         .fetch_one(store.writer())
         .await
@@ -277,7 +280,6 @@ async fn a_failed_cell_stays_failed() {
 
 /// Fault-injection finding: a stopping worker's cell waited for its lease to expire and
 /// the stop counted towards the attempt limit.
-#[tokio::test]
 async fn released_attempts_requeue_at_once_and_do_not_count() {
     let (_d, store, w) = setup().await;
     store
@@ -325,7 +327,6 @@ async fn released_attempts_requeue_at_once_and_do_not_count() {
 
 /// Fault-injection findings: out-of-range epochs, non-finite scores and metrics, slot
 /// numbers the worker never registered, terrains a sweep does not have.
-#[tokio::test]
 async fn reports_outside_the_cell_are_refused_and_change_nothing() {
     let (_d, store, w) = setup().await;
     let sweep = store
@@ -397,7 +398,6 @@ async fn reports_outside_the_cell_are_refused_and_change_nothing() {
     assert!(store.promoted(sweep.id, Some("flat")).await.is_ok());
 }
 
-#[tokio::test]
 async fn replicates_promote_a_point_by_their_mean_once_all_are_done() {
     let (_d, store, w) = setup().await;
     let mut s = spec(2, 1, vec![TerrainKind::Flat]);
@@ -449,7 +449,7 @@ async fn replicates_promote_a_point_by_their_mean_once_all_are_done() {
 
 /// Uploads a leased cell's checkpoint at the epoch it trains to and reports `s` there.
 async fn report_at_target(
-    store: &SqliteStore,
+    store: &SqlStore,
     g: &super::LeaseGrant,
     s: f64,
     now: i64,
@@ -472,7 +472,7 @@ async fn report_at_target(
 
 /// Leases the next cell and reports `s` at the epoch it trains to.
 async fn train_to_target(
-    store: &SqliteStore,
+    store: &SqlStore,
     w: &WorkerId,
     s: f64,
     now: i64,
@@ -482,7 +482,6 @@ async fn train_to_target(
     Some((g, out))
 }
 
-#[tokio::test]
 async fn successive_halving_continues_the_top_third_and_stops_the_rest() {
     let (_d, store, w) = setup().await;
     let mut s = spec(6, 1, vec![TerrainKind::Flat]);
@@ -587,7 +586,6 @@ async fn successive_halving_continues_the_top_third_and_stops_the_rest() {
     );
 }
 
-#[tokio::test]
 async fn a_cell_failing_for_good_closes_the_rung_it_never_reached() {
     let (_d, store, w) = setup().await;
     let mut s = spec(2, 1, vec![TerrainKind::Flat]);
@@ -615,7 +613,6 @@ async fn a_cell_failing_for_good_closes_the_rung_it_never_reached() {
     assert_eq!(g.cell.target_epochs, 4);
 }
 
-#[tokio::test]
 async fn the_evolutionary_search_queues_a_generation_when_the_last_one_ends() {
     let (_d, store, w) = setup().await;
     let mut s = spec(3, 3, vec![TerrainKind::Flat]);
@@ -692,7 +689,6 @@ async fn the_evolutionary_search_queues_a_generation_when_the_last_one_ends() {
     assert_eq!(best.cell.w1, max_w1);
 }
 
-#[tokio::test]
 async fn cmaes_halves_inside_each_generation() {
     let (_d, store, w) = setup().await;
     let mut s = spec(3, 3, vec![TerrainKind::Flat]);
@@ -742,7 +738,7 @@ async fn cmaes_halves_inside_each_generation() {
     }
     let done = finished.expect("the sweep ends after generation 1");
     assert_eq!((done.cells_done, done.cells_stopped), (2, 4));
-    let trained: i64 = sqlx::query_scalar("SELECT SUM(epochs_done) FROM cells")
+    let trained: i64 = sqlx::query_scalar("SELECT CAST(SUM(epochs_done) AS BIGINT) FROM cells")
         .fetch_one(store.writer())
         .await
         .unwrap();
@@ -755,7 +751,6 @@ async fn cmaes_halves_inside_each_generation() {
 
 /// Many concurrent reports are committed together, each gets its own answer: a bad
 /// value or a closed cell is refused alone and the rest of its batch is stored.
-#[tokio::test]
 async fn concurrent_reports_share_commits_and_a_bad_one_fails_alone() {
     let (_dir, store, w) = setup_with_slots(8).await;
     store
@@ -814,3 +809,121 @@ async fn concurrent_reports_share_commits_and_a_bad_one_fails_alone() {
         .unwrap();
     assert_eq!(epochs_done[1..], [3; 7], "{epochs_done:?}");
 }
+
+/// Every SQL example of README's "Results in SQL" runs on the backend and returns rows,
+/// on a grid sweep with replicates, metrics, evaluations, checkpoints and promotions.
+async fn the_readme_queries_run() {
+    let (_d, store, w) = setup().await;
+    let mut s = spec(2, 2, vec![TerrainKind::Flat]);
+    s.w2_values = vec![-6.0, -3.0];
+    s.replicates = 2;
+    s.eval_every = 1;
+    let sweep = store.create_sweep(&s, 0).await.unwrap();
+    assert_eq!(sweep.id.0, 1, "the README's examples query sweep 1");
+    let mut k = 0.0;
+    while let Some(g) = store.lease_next(&w, 0, 1).await.unwrap() {
+        k += 0.1;
+        let values: BTreeMap<String, f64> = [
+            ("mean_step_reward", k),
+            ("mean_return", 10.0 * k),
+            ("eval/score", k),
+            ("eval/fall_rate", 0.0),
+        ]
+        .into_iter()
+        .map(|(n, v)| (n.to_string(), v))
+        .collect();
+        store
+            .record_progress(g.lease, &[(1, values.clone()), (2, values)])
+            .await
+            .unwrap();
+        report_at_target(&store, &g, k, 2).await;
+    }
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap();
+    let section = readme
+        .split("## Results in SQL:")
+        .nth(1)
+        .and_then(|r| r.split("\n## ").next())
+        .expect("README has its SQL section");
+    let mut statements = 0;
+    for block in section.split("```sql").skip(1) {
+        let block = block.split("```").next().unwrap();
+        for sql in block.split(';').map(str::trim).filter(|q| !q.is_empty()) {
+            let rows = sqlx::query(sql)
+                .fetch_all(store.reader())
+                .await
+                .unwrap_or_else(|e| panic!("{e} in README query:\n{sql}"));
+            // Sweep 1 is a grid: successive halving's decisions are empty there.
+            assert!(
+                !rows.is_empty() || sql.contains("rung_decisions"),
+                "no rows from README query:\n{sql}"
+            );
+            statements += 1;
+        }
+    }
+    assert!(statements >= 10, "{statements} README queries found");
+}
+
+/// A database of its own on the PostgreSQL server of the tests.
+mod pg {
+    use std::sync::atomic::{AtomicU32, Ordering};
+
+    pub async fn fresh_database() -> String {
+        static N: AtomicU32 = AtomicU32::new(0);
+        let server = std::env::var("GAITSWEEP_TEST_PG").expect(
+            "the PostgreSQL conformance tests need a server: run scripts/test.sh (it starts a \
+             throwaway one) or set GAITSWEEP_TEST_PG=postgres://user@host:port/postgres",
+        );
+        let name = format!(
+            "gs_store_{}_{}",
+            std::process::id(),
+            N.fetch_add(1, Ordering::Relaxed)
+        );
+        super::backend::create_postgres_database(&server, &name)
+            .await
+            .unwrap()
+    }
+}
+
+tokio::task_local! {
+    /// The backend `setup` opens (SQLite unless a conformance test says otherwise).
+    static BACKEND: Backend;
+}
+
+/// Runs every listed test on SQLite and on PostgreSQL (`sqlite::NAME`, `postgres::NAME`).
+macro_rules! conformance {
+    ($($name:ident),* $(,)?) => {
+        mod sqlite {
+            $(
+                #[tokio::test]
+                async fn $name() {
+                    super::BACKEND.scope(super::Backend::Sqlite, super::$name()).await
+                }
+            )*
+        }
+        mod postgres {
+            $(
+                #[tokio::test]
+                async fn $name() {
+                    super::BACKEND.scope(super::Backend::Postgres, super::$name()).await
+                }
+            )*
+        }
+    };
+}
+
+conformance!(
+    expired_cells_are_retried_then_failed,
+    results_are_idempotent_and_promote_the_best,
+    resume_points_at_the_latest_checkpoint_and_cancel_stops_all,
+    a_failed_cell_stays_failed,
+    released_attempts_requeue_at_once_and_do_not_count,
+    reports_outside_the_cell_are_refused_and_change_nothing,
+    replicates_promote_a_point_by_their_mean_once_all_are_done,
+    successive_halving_continues_the_top_third_and_stops_the_rest,
+    a_cell_failing_for_good_closes_the_rung_it_never_reached,
+    the_evolutionary_search_queues_a_generation_when_the_last_one_ends,
+    cmaes_halves_inside_each_generation,
+    concurrent_reports_share_commits_and_a_bad_one_fails_alone,
+    the_readme_queries_run,
+);

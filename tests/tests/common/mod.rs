@@ -94,11 +94,61 @@ pub struct Coord {
     pub proc: Proc,
     pub addr: String,
     pub data: PathBuf,
+    /// Its PostgreSQL database (`--database`), if not the data dir's SQLite file.
+    pub database: Option<String>,
+}
+
+/// The database of an end-to-end test.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Db {
+    /// The default: SQLite in the data dir.
+    Sqlite,
+    /// A database of its own on the server of `GAITSWEEP_TEST_PG`.
+    Postgres,
+}
+
+impl Db {
+    /// The `--database` of a new coordinator: none for SQLite, a fresh database on the
+    /// test server for PostgreSQL.
+    pub async fn fresh(self) -> Option<String> {
+        use std::sync::atomic::{AtomicU32, Ordering};
+        static N: AtomicU32 = AtomicU32::new(0);
+        match self {
+            Db::Sqlite => None,
+            Db::Postgres => {
+                let server = std::env::var("GAITSWEEP_TEST_PG").expect(
+                    "the PostgreSQL end-to-end tests need a server: run scripts/test.sh (it \
+                     starts a throwaway one) or set GAITSWEEP_TEST_PG=postgres://user@host:port/postgres",
+                );
+                let name = format!(
+                    "gs_e2e_{}_{}",
+                    std::process::id(),
+                    N.fetch_add(1, Ordering::Relaxed)
+                );
+                Some(
+                    gaitsweep_coordinator::store::backend::create_postgres_database(&server, &name)
+                        .await
+                        .expect("create the test database"),
+                )
+            }
+        }
+    }
 }
 
 impl Coord {
     /// Starts `coordinator serve` on `listen` with the data dir `data` and extra flags.
     pub async fn start(root: &Path, listen: &str, extra: &[&str]) -> Coord {
+        Self::start_on(root, listen, None, extra).await
+    }
+
+    /// As [`Coord::start`], with the database `database` (`--database`; `None`: SQLite in
+    /// the data dir).
+    pub async fn start_on(
+        root: &Path,
+        listen: &str,
+        database: Option<&str>,
+        extra: &[&str],
+    ) -> Coord {
         let data = root.join("data");
         let addr_file = data.join("coordinator.addr");
         let _ = std::fs::remove_file(&addr_file);
@@ -107,6 +157,10 @@ impl Coord {
             .map(|s| s.to_string())
             .collect();
         args.push(data.display().to_string());
+        if let Some(d) = database {
+            args.push("--database".into());
+            args.push(d.to_string());
+        }
         args.extend(extra.iter().map(|s| s.to_string()));
         let n = std::fs::read_dir(root).map(|d| d.count()).unwrap_or(0);
         let proc = Proc::spawn(
@@ -123,7 +177,28 @@ impl Coord {
             },
         )
         .await;
-        Coord { proc, addr, data }
+        if database.is_some() {
+            let log = proc.log.clone();
+            wait_for(
+                "the coordinator to say its database is PostgreSQL",
+                Duration::from_secs(30),
+                || {
+                    let text = std::fs::read_to_string(&log).unwrap_or_default();
+                    async move { text.contains("backend=postgres").then_some(()) }
+                },
+            )
+            .await;
+            assert!(
+                !data.join("gaitsweep.sqlite").exists(),
+                "a coordinator on PostgreSQL wrote no SQLite file"
+            );
+        }
+        Coord {
+            proc,
+            addr,
+            data,
+            database: database.map(str::to_string),
+        }
     }
 
     pub fn url(&self) -> String {
@@ -146,13 +221,9 @@ impl Coord {
         WorkerServiceClient::new(self.channel().await)
     }
 
-    pub async fn db(&self) -> sqlx::SqlitePool {
-        let opts = sqlx::sqlite::SqliteConnectOptions::new()
-            .filename(self.data.join("gaitsweep.sqlite"))
-            .read_only(true);
-        sqlx::sqlite::SqlitePoolOptions::new()
-            .max_connections(1)
-            .connect_with(opts)
+    /// The coordinator's database, for reading (the same pool the report uses).
+    pub async fn db(&self) -> sqlx::AnyPool {
+        gaitsweep_coordinator::report::open_db(&self.data, self.database.as_deref())
             .await
             .expect("open db")
     }
