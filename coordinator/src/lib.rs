@@ -1,5 +1,5 @@
 //! gaitsweep coordinator: holds sweeps (grids of (w1, w2) cells), leases cells to worker
-//! daemons over gRPC, stores scores, metrics and checkpoints in SQLite and promotes the
+//! daemons over gRPC, stores scores, metrics and checkpoints in SQLite or PostgreSQL and promotes the
 //! best model of each sweep.
 
 pub mod asha;

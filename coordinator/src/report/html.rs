@@ -261,6 +261,6 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
             esc(c.last_error.as_deref().unwrap_or(""))
         );
     }
-    o.push_str("</table>\n<p>Every value comes from the coordinator's SQLite database (tables cells, scores, epoch_metrics, promotions).</p>\n</body></html>\n");
+    o.push_str("</table>\n<p>Every value comes from the coordinator's database (tables cells, scores, epoch_metrics, promotions).</p>\n</body></html>\n");
     o
 }

@@ -1,5 +1,5 @@
 //! `coordinator report SWEEP --data-dir DIR --out OUT`: the pictures of a sweep, read
-//! straight from the coordinator's SQLite database (read-only; the coordinator may be
+//! straight from the coordinator's database (SQLite read-only, or PostgreSQL; the coordinator may be
 //! running) and drawn with plotters:
 //!
 //! - `score_<terrain>.{png,svg}`: heatmap of the gait score over (w1, w2), best cell marked;

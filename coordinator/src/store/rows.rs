@@ -1,4 +1,4 @@
-//! The SQLite rows the coordinator reads, as `sqlx::FromRow` structs, and their one
+//! The database rows the coordinator reads, as `sqlx::FromRow` structs, and their one
 //! conversion to domain records. The store and the report both read through them, so a
 //! column is mapped in exactly one place.
 
