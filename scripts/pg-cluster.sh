@@ -32,6 +32,12 @@ case "$cmd" in
         sudo apt-get update -qq && sudo apt-get install -y -qq postgresql > /dev/null
       fi
       bin="$(pg_bin)"
+      # Debian's package creates and starts a system cluster of its own; only ours is wanted.
+      if command -v pg_lsclusters > /dev/null 2>&1; then
+        pg_lsclusters -h | while read -r version name _; do
+          pg_ctlcluster "$version" "$name" stop > /dev/null 2>&1 || true
+        done
+      fi
     fi
     mkdir -p "$dir"
     [ "$(id -u)" = 0 ] && chown postgres "$dir"

@@ -16,7 +16,8 @@ if ! command -v chromium > /dev/null 2>&1; then
 fi
 # The store's conformance suite and the end-to-end test on PostgreSQL run against a
 # throwaway cluster (Debian's postgresql package), stopped and removed at the end.
-PG_DIR="$(mktemp -d)"
+# Under /tmp: the server runs as the `postgres` user, who must reach the directory.
+PG_DIR="$(mktemp -d /tmp/gaitsweep-pg.XXXXXX)"
 stop_pg() { scripts/pg-cluster.sh stop "$PG_DIR" || true; rm -rf "$PG_DIR"; }
 trap stop_pg EXIT
 GAITSWEEP_TEST_PG="$(scripts/pg-cluster.sh start "$PG_DIR")"

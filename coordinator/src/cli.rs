@@ -14,7 +14,7 @@ pub struct Conn {
     #[arg(long, env = "GAITSWEEP_URL", default_value = "http://127.0.0.1:50051")]
     connect: String,
     /// Access token.
-    #[arg(long, env = "GAITSWEEP_TOKEN")]
+    #[arg(long, env = "GAITSWEEP_TOKEN", hide_env_values = true)]
     token: Option<String>,
     /// PEM CA certificate to trust for https:// (e.g. a self-signed coordinator certificate).
     #[arg(long)]

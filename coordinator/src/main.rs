@@ -41,10 +41,10 @@ struct ServeArgs {
     data_dir: PathBuf,
     /// The database: a PostgreSQL URL (postgres://user:password@host:port/db) or a SQLite
     /// file path; default DATA_DIR/gaitsweep.sqlite.
-    #[arg(long, env = "GAITSWEEP_DATABASE")]
+    #[arg(long, env = "GAITSWEEP_DATABASE", hide_env_values = true)]
     database: Option<String>,
     /// Require this access token on every RPC.
-    #[arg(long, env = "GAITSWEEP_TOKEN")]
+    #[arg(long, env = "GAITSWEEP_TOKEN", hide_env_values = true)]
     token: Option<String>,
     /// PEM certificate chain for TLS (with --tls-key).
     #[arg(long, requires = "tls_key")]

@@ -445,6 +445,32 @@ async fn coordinator_killed_and_restarted(on: Db) {
         2 * LONG_EPOCHS as i64,
         "every epoch of both cells stored once"
     );
+    // the report reads the same database (`--database` when it is PostgreSQL)
+    let out = tmp.path().join("report");
+    let mut cmd = std::process::Command::new(bin("coordinator"));
+    cmd.args([
+        "report",
+        &sweep.sweep_id.to_string(),
+        "--no-gif",
+        "--data-dir",
+    ])
+    .arg(&coord.data)
+    .arg("--out")
+    .arg(&out);
+    if let Some(d) = &database {
+        cmd.args(["--database", d]);
+    }
+    let run = cmd.output().unwrap();
+    assert!(
+        run.status.success(),
+        "coordinator report: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    assert!(
+        html.contains("2 of 2 cells scored"),
+        "report of the finished sweep"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -162,7 +162,7 @@ async fn start_server(args: &Args) -> anyhow::Result<(Server, String)> {
         Some(server) => Some(
             gaitsweep_coordinator::store::backend::create_postgres_database(
                 server,
-                &format!("gs_loadbench_{}", std::process::id()),
+                &gaitsweep_coordinator::store::backend::unique_database_name("gs_loadbench"),
             )
             .await
             .context("create the bench's database on --postgres")?,

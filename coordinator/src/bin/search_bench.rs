@@ -27,11 +27,11 @@ struct Args {
 enum Cmd {
     /// Write a recorded grid sweep as JSON (stdout) from a coordinator's data dir.
     Export {
-        /// The coordinator's data dir.
-        #[arg(long)]
-        data_dir: PathBuf,
+        /// The coordinator's data dir (holds gaitsweep.sqlite); not needed with --database.
+        #[arg(long, required_unless_present = "database")]
+        data_dir: Option<PathBuf>,
         /// The coordinator's database when it is not the data dir's SQLite file.
-        #[arg(long, env = "GAITSWEEP_DATABASE")]
+        #[arg(long, env = "GAITSWEEP_DATABASE", hide_env_values = true)]
         database: Option<String>,
         /// Sweep id (a full grid, every point scored).
         #[arg(long)]
@@ -79,7 +79,13 @@ async fn main() -> anyhow::Result<()> {
             sweep,
             terrain,
         } => {
-            let rec = export(&data_dir, database.as_deref(), sweep, terrain.as_deref()).await?;
+            let rec = export(
+                &data_dir.unwrap_or_default(),
+                database.as_deref(),
+                sweep,
+                terrain.as_deref(),
+            )
+            .await?;
             rec.validate().map_err(anyhow::Error::msg)?;
             println!("{}", serde_json::to_string_pretty(&rec)?);
             Ok(())
@@ -213,7 +219,7 @@ async fn export(
             .bind(sweep)
             .fetch_optional(&db)
             .await?
-            .with_context(|| format!("no sweep {sweep} in {}", data_dir.display()))?;
+            .with_context(|| format!("no sweep {sweep} in this database"))?;
     let spec: gaitsweep_core::ResolvedSpec = serde_json::from_str(&spec_json)?;
     if spec.search != gaitsweep_core::Search::Grid {
         bail!("sweep {sweep} is not a full grid: record a grid (no [search]) with eval.every");

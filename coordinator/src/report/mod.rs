@@ -250,6 +250,7 @@ pub async fn open_db(data_dir: &Path, database: Option<&str>) -> anyhow::Result<
         Some(DatabaseUrl::Sqlite(path)) => path,
         None => data_dir.join(DB_FILE),
     };
+    let url = crate::store::backend::absolute(&url)?;
     if !url.is_file() {
         anyhow::bail!(
             "no database at {}: is --data-dir the coordinator's data dir (or --database its database)?",
@@ -345,7 +346,7 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> 
          FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
          LEFT JOIN checkpoints fk ON fk.sha256 = s.final_checkpoint_sha256 \
          LEFT JOIN checkpoints lk ON lk.sha256 = c.last_checkpoint_sha256 \
-         WHERE c.sweep_id = $1 ORDER BY c.terrain_index, c.w1_index, c.w2_index"
+         WHERE c.sweep_id = $1 ORDER BY c.terrain_index, c.w1_index, c.w2_index, c.replicate"
     );
     for r in sqlx::query(&sql).bind(sweep).fetch_all(db).await? {
         let checkpoint: Option<String> = r.try_get("ckpt_path")?;
@@ -499,7 +500,7 @@ pub struct ReportArgs {
     pub data_dir: PathBuf,
     /// The coordinator's database when it is not the data dir's SQLite file (as `serve
     /// --database`).
-    #[arg(long, env = "GAITSWEEP_DATABASE")]
+    #[arg(long, env = "GAITSWEEP_DATABASE", hide_env_values = true)]
     pub database: Option<String>,
     /// Output directory of the report.
     #[arg(long, default_value = "report")]

@@ -12,12 +12,12 @@ use std::path::{Path, PathBuf};
 pub struct TensorboardArgs {
     /// Sweep id.
     pub sweep: i64,
-    /// The coordinator's data dir (holds gaitsweep.sqlite).
-    #[arg(long)]
-    pub data_dir: PathBuf,
+    /// The coordinator's data dir (holds gaitsweep.sqlite); not needed with --database.
+    #[arg(long, required_unless_present = "database")]
+    pub data_dir: Option<PathBuf>,
     /// The coordinator's database when it is not the data dir's SQLite file (as `serve
     /// --database`).
-    #[arg(long, env = "GAITSWEEP_DATABASE")]
+    #[arg(long, env = "GAITSWEEP_DATABASE", hide_env_values = true)]
     pub database: Option<String>,
     /// The log dir to write (`tensorboard --logdir OUT`).
     #[arg(long, default_value = "tensorboard")]
@@ -88,7 +88,8 @@ pub async fn export(db: &sqlx::AnyPool, sweep: i64, out: &Path) -> anyhow::Resul
 
 /// Runs `coordinator tensorboard`.
 pub async fn run(a: TensorboardArgs) -> anyhow::Result<()> {
-    let db = super::open_db(&a.data_dir, a.database.as_deref()).await?;
+    let dir = a.data_dir.clone().unwrap_or_default();
+    let db = super::open_db(&dir, a.database.as_deref()).await?;
     let (runs, scalars) = export(&db, a.sweep, &a.out).await?;
     db.close().await;
     println!(

@@ -46,7 +46,12 @@ impl DatabaseUrl {
         if s.starts_with("postgres://") || s.starts_with("postgresql://") {
             return Ok(DatabaseUrl::Postgres(s.to_string()));
         }
-        if let Some(path) = s.strip_prefix("sqlite://") {
+        if let Some(path) = s.strip_prefix("sqlite://").or(s.strip_prefix("sqlite:")) {
+            if path.is_empty() || path.starts_with(":memory:") {
+                return Err(Error::BadRequest(format!(
+                    "--database {s:?}: an in-memory database loses every result at exit; give a file path"
+                )));
+            }
             return Ok(DatabaseUrl::Sqlite(path.into()));
         }
         if s.contains("://") {
@@ -78,13 +83,41 @@ fn redact_password(url: &str) -> String {
     let Some((scheme, rest)) = url.split_once("://") else {
         return url.to_string();
     };
-    let Some((userinfo, host)) = rest.split_once('@') else {
-        return url.to_string();
+    let (rest, query) = match rest.split_once('?') {
+        Some((r, q)) => (r, Some(q)),
+        None => (rest, None),
     };
-    match userinfo.split_once(':') {
-        Some((user, _)) => format!("{scheme}://{user}:***@{host}"),
-        None => url.to_string(),
+    let rest = match rest.rsplit_once('@') {
+        Some((userinfo, host)) => match userinfo.split_once(':') {
+            Some((user, _)) => format!("{user}:***@{host}"),
+            None => format!("{userinfo}@{host}"),
+        },
+        None => rest.to_string(),
+    };
+    let query = query.map(|q| {
+        q.split('&')
+            .map(|kv| match kv.split_once('=') {
+                Some((k, _)) if k.eq_ignore_ascii_case("password") => format!("{k}=***"),
+                _ => kv.to_string(),
+            })
+            .collect::<Vec<_>>()
+            .join("&")
+    });
+    match query {
+        Some(q) => format!("{scheme}://{rest}?{q}"),
+        None => format!("{scheme}://{rest}"),
     }
+}
+
+/// `path` made absolute against the working directory (a SQLite path travels through a
+/// `sqlite://` URL, where a relative path's first part would read as a host).
+pub fn absolute(path: &std::path::Path) -> Result<std::path::PathBuf> {
+    std::path::absolute(path).map_err(|e| {
+        Error::BadRequest(format!(
+            "database path {}: {e}; give an absolute path",
+            path.display()
+        ))
+    })
 }
 
 impl Backend {
@@ -125,6 +158,21 @@ pub async fn create_postgres_database(server: &str, name: &str) -> Result<String
     Ok(with_database(server, name))
 }
 
+/// A database name no other run on the same server has used: `prefix`, the process id, the
+/// time in microseconds and a counter (process ids repeat on a long-lived server).
+pub fn unique_database_name(prefix: &str) -> String {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    static N: AtomicU32 = AtomicU32::new(0);
+    let micros = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros());
+    format!(
+        "{prefix}_{}_{micros}_{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
 /// `url` with its database (the path) replaced by `name`, keeping any query.
 fn with_database(url: &str, name: &str) -> String {
     let (scheme, rest) = url.split_once("://").unwrap_or(("postgres", url));
@@ -158,6 +206,16 @@ mod tests {
         let pg = DatabaseUrl::parse("postgres://gs:secret@127.0.0.1:5432/gaitsweep").unwrap();
         assert_eq!(pg.backend(), Backend::Postgres);
         assert_eq!(pg.redacted(), "postgres://gs:***@127.0.0.1:5432/gaitsweep");
+        let q = DatabaseUrl::parse("postgres://gs@h/db?sslmode=disable&password=p@ss").unwrap();
+        assert_eq!(
+            q.redacted(),
+            "postgres://gs@h/db?sslmode=disable&password=***"
+        );
+        assert_eq!(
+            DatabaseUrl::parse("sqlite:rel/x.sqlite").unwrap(),
+            DatabaseUrl::Sqlite("rel/x.sqlite".into())
+        );
+        assert!(DatabaseUrl::parse("sqlite::memory:").is_err());
         assert_eq!(
             DatabaseUrl::parse("/data/gaitsweep.sqlite").unwrap(),
             DatabaseUrl::Sqlite("/data/gaitsweep.sqlite".into())

@@ -198,6 +198,8 @@ async fn write_batch(
     for job in jobs {
         let l = match lease_cell(&mut tx, backend, job.lease).await {
             Ok(l) => l,
+            // A database error ends the transaction on PostgreSQL: the batch fails whole.
+            Err(e @ Error::Db(_)) => return Err(e),
             Err(e) => {
                 out.push(Err(e));
                 continue;

@@ -64,6 +64,7 @@ impl SqlStore {
     }
 
     async fn open_sqlite(path: &Path) -> Result<Self> {
+        let path = &super::backend::absolute(path)?;
         let url = SqliteConnectOptions::new()
             .filename(path)
             .create_if_missing(true)
@@ -481,7 +482,7 @@ impl Store for SqlStore {
         self.sweep(id).await?;
         let sql = format!(
             "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 \
-             ORDER BY c.terrain_index, c.w1_index, c.w2_index"
+             ORDER BY c.terrain_index, c.w1_index, c.w2_index, c.replicate"
         );
         sqlx::query(&sql)
             .bind(id.0)

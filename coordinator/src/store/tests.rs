@@ -866,19 +866,12 @@ async fn the_readme_queries_run() {
 
 /// A database of its own on the PostgreSQL server of the tests.
 mod pg {
-    use std::sync::atomic::{AtomicU32, Ordering};
-
     pub async fn fresh_database() -> String {
-        static N: AtomicU32 = AtomicU32::new(0);
         let server = std::env::var("GAITSWEEP_TEST_PG").expect(
             "the PostgreSQL conformance tests need a server: run scripts/test.sh (it starts a \
              throwaway one) or set GAITSWEEP_TEST_PG=postgres://user@host:port/postgres",
         );
-        let name = format!(
-            "gs_store_{}_{}",
-            std::process::id(),
-            N.fetch_add(1, Ordering::Relaxed)
-        );
+        let name = super::backend::unique_database_name("gs_store");
         super::backend::create_postgres_database(&server, &name)
             .await
             .unwrap()

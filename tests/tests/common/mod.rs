@@ -111,8 +111,6 @@ impl Db {
     /// The `--database` of a new coordinator: none for SQLite, a fresh database on the
     /// test server for PostgreSQL.
     pub async fn fresh(self) -> Option<String> {
-        use std::sync::atomic::{AtomicU32, Ordering};
-        static N: AtomicU32 = AtomicU32::new(0);
         match self {
             Db::Sqlite => None,
             Db::Postgres => {
@@ -120,11 +118,7 @@ impl Db {
                     "the PostgreSQL end-to-end tests need a server: run scripts/test.sh (it \
                      starts a throwaway one) or set GAITSWEEP_TEST_PG=postgres://user@host:port/postgres",
                 );
-                let name = format!(
-                    "gs_e2e_{}_{}",
-                    std::process::id(),
-                    N.fetch_add(1, Ordering::Relaxed)
-                );
+                let name = gaitsweep_coordinator::store::backend::unique_database_name("gs_e2e");
                 Some(
                     gaitsweep_coordinator::store::backend::create_postgres_database(&server, &name)
                         .await
