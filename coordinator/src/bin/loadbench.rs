@@ -27,7 +27,7 @@ use gaitsweep_core::pb::{
 use sha2::{Digest, Sha256};
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
@@ -477,13 +477,16 @@ async fn worker(
         .heartbeat_ms
         .unwrap_or(reg.heartbeat_interval_ms as u64)
         .max(1);
+    // As the daemon does, heartbeats go on until the result is acknowledged: a worker
+    // still delivering its backlog after training keeps its lease.
+    let result_sent = Arc::new(AtomicBool::new(false));
     let beats = tokio::spawn(heartbeats(
         c.clone(),
         reg.worker_id.clone(),
         lease.lease_id,
         Duration::from_millis(beat_every * i as u64 / n as u64),
         Duration::from_millis(beat_every),
-        start + phase,
+        result_sent.clone(),
         stats.clone(),
     ));
     // The training clock: epochs come at the real rate whether or not the coordinator
@@ -548,7 +551,11 @@ async fn worker(
         }
     }
     clock.await?;
-    beats.await??;
+    if beats.is_finished() {
+        beats.await??;
+        bail!("heartbeats of worker {i} ended before its result");
+    }
+    result_sent.store(true, Ordering::Relaxed);
     let t = Instant::now();
     let r = c
         .report_result(pb::ReportResultRequest {
@@ -569,28 +576,27 @@ async fn worker(
         .with_context(|| format!("result of worker {i}"))?
         .into_inner();
     stats.time(&stats.result, t);
+    beats.abort();
     Ok(!r.duplicate)
 }
 
-/// Heartbeats of one worker until the phase ends; counts leases the coordinator lost.
+/// Heartbeats of one worker until it is aborted after the result; counts leases the
+/// coordinator lost (a lease that is no longer active once the result is on its way is not
+/// lost: the result ended it).
 async fn heartbeats(
     mut c: WorkerServiceClient<Channel>,
     worker_id: String,
     lease: i64,
     offset: Duration,
     every: Duration,
-    until: Instant,
+    result_sent: Arc<AtomicBool>,
     stats: Arc<Stats>,
 ) -> anyhow::Result<()> {
     tokio::time::sleep(offset).await;
     let mut tick = tokio::time::interval(every);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let end = tokio::time::Instant::from_std(until);
     loop {
-        tokio::select! {
-            _ = tick.tick() => {}
-            _ = tokio::time::sleep_until(end) => return Ok(()),
-        }
+        tick.tick().await;
         let t = Instant::now();
         let r = c
             .heartbeat(pb::HeartbeatRequest {
@@ -601,6 +607,9 @@ async fn heartbeats(
             .context("heartbeat")?;
         stats.time(&stats.heartbeat, t);
         if r.get_ref().leases.first().map(|l| l.status()) != Some(pb::LeaseStatus::Active) {
+            if result_sent.load(Ordering::Relaxed) {
+                return Ok(());
+            }
             stats.lost_leases.fetch_add(1, Ordering::Relaxed);
             bail!("lease {lease} lost");
         }
