@@ -5,9 +5,11 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::terrain::TerrainKind;
 
 /// Where robot presets live: `$GAITSWEEP_ROBOTS` if set, else the `robots/` directory of the
 /// source tree this crate was built from.
@@ -358,6 +360,12 @@ pub struct PpoConfig {
     /// Epochs of the noise annealing (with `final_noise_std`).
     #[serde(default)]
     pub noise_decay_epochs: usize,
+    /// Epoch at which the annealing starts (with `final_noise_std`). 0: from
+    /// `init_noise_std` at epoch 0. Otherwise the std is learned (rsl_rl) until this epoch
+    /// and then annealed geometrically, each action dimension from the value it learned, to
+    /// `final_noise_std` at epoch `noise_decay_start + noise_decay_epochs`.
+    #[serde(default)]
+    pub noise_decay_start: usize,
 }
 
 impl Default for PpoConfig {
@@ -382,6 +390,7 @@ impl Default for PpoConfig {
             clip_value_loss: true,
             final_noise_std: 0.0,
             noise_decay_epochs: 0,
+            noise_decay_start: 0,
         }
     }
 }
@@ -403,6 +412,13 @@ impl PpoConfig {
                     Err(bad("expected a positive whole number"))
                 }
             };
+            let whole_or_zero = || -> Result<usize> {
+                if v >= 0.0 && v.fract() == 0.0 {
+                    Ok(v as usize)
+                } else {
+                    Err(bad("expected a whole number >= 0"))
+                }
+            };
             match key.as_str() {
                 "init_noise_std" => self.init_noise_std = v,
                 "clip_param" => self.clip_param = v,
@@ -420,12 +436,13 @@ impl PpoConfig {
                 "clip_value_loss" => self.clip_value_loss = v != 0.0,
                 "final_noise_std" => self.final_noise_std = v,
                 "noise_decay_epochs" => self.noise_decay_epochs = whole()?,
+                "noise_decay_start" => self.noise_decay_start = whole_or_zero()?,
                 _ => {
                     return Err(bad(
                         "unknown hyperparameter; known: init_noise_std, clip_param, gamma, lam, \
                          value_loss_coef, entropy_coef, learning_rate, desired_kl, adaptive_lr, \
                          max_grad_norm, num_learning_epochs, num_mini_batches, steps_per_env, \
-                         clip_value_loss, final_noise_std, noise_decay_epochs",
+                         clip_value_loss, final_noise_std, noise_decay_epochs, noise_decay_start",
                     ))
                 }
             }
@@ -484,6 +501,54 @@ pub struct PresetFile {
     /// How episodes start (default: at the default pose, at rest).
     #[serde(default)]
     pub reset: ResetConfig,
+    /// Settings that differ by terrain (`[terrain.rough.ppo]`, `[terrain.rough.domain_rand]`):
+    /// laid over `ppo` and `domain_rand` for a cell on that terrain (a spec's own `ppo`
+    /// overrides go over them).
+    #[serde(default)]
+    pub terrain: BTreeMap<TerrainKind, TerrainOverrides>,
+}
+
+/// What a preset sets differently on one terrain: partial `[ppo]` and `[domain_rand]`
+/// tables, key by key over the preset's own.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TerrainOverrides {
+    /// Keys of `[ppo]`.
+    #[serde(default)]
+    pub ppo: toml::Table,
+    /// Keys of `[domain_rand]`.
+    #[serde(default)]
+    pub domain_rand: toml::Table,
+}
+
+/// The `ppo` and `domain_rand` of a cell on `terrain`: the preset's, with that terrain's
+/// overrides from `by_terrain` laid over them.
+pub fn settings_on(
+    ppo: &PpoConfig,
+    domain_rand: &DomainRandConfig,
+    by_terrain: &BTreeMap<TerrainKind, TerrainOverrides>,
+    terrain: TerrainKind,
+) -> Result<(PpoConfig, DomainRandConfig)> {
+    let Some(o) = by_terrain.get(&terrain) else {
+        return Ok((ppo.clone(), domain_rand.clone()));
+    };
+    let bad =
+        |table: &str, e: String| Error::InvalidArgument(format!("terrain.{terrain}.{table}: {e}"));
+    Ok((
+        lay_over(ppo, &o.ppo).map_err(|e| bad("ppo", e))?,
+        lay_over(domain_rand, &o.domain_rand).map_err(|e| bad("domain_rand", e))?,
+    ))
+}
+
+fn lay_over<T: Serialize + DeserializeOwned>(
+    value: &T,
+    top: &toml::Table,
+) -> std::result::Result<T, String> {
+    let mut table = toml::Table::try_from(value).map_err(|e| e.to_string())?;
+    merge(&mut table, top.clone());
+    table
+        .try_into()
+        .map_err(|e: toml::de::Error| e.to_string().trim().to_owned())
 }
 
 /// The directory of a robot's preset: `robot` itself when it is a path (contains `/`),
@@ -544,7 +609,18 @@ impl PresetFile {
             path: dir.join("preset.toml"),
             message: format!("invalid preset: {e}"),
         })?;
+        for &terrain in file.terrain.keys() {
+            file.settings_on(terrain).map_err(|e| Error::Preset {
+                path: dir.join("preset.toml"),
+                message: e.to_string(),
+            })?;
+        }
         Ok((file, texts))
+    }
+
+    /// The `ppo` and `domain_rand` of a cell on `terrain` (see [`settings_on`]).
+    pub fn settings_on(&self, terrain: TerrainKind) -> Result<(PpoConfig, DomainRandConfig)> {
+        settings_on(&self.ppo, &self.domain_rand, &self.terrain, terrain)
     }
 }
 

@@ -1,14 +1,17 @@
 //! Robot presets: `robots/<name>/preset.toml` plus the URDF it names.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
 
 use crate::error::{Error, Result};
 
+use crate::terrain::TerrainKind;
 pub use gaitsweep_model::preset::{
     available, preset_dir, robots_dir, AxisSpec, CommandConfig, ControlConfig, DomainRandConfig,
     GridSpec, JointBackend, ObservationConfig, PpoConfig, PresetFile, ResetConfig, RewardConfig,
+    TerrainOverrides,
 };
 
 /// A robot preset: its URDF, control, observation, reward and grid settings.
@@ -42,12 +45,15 @@ pub struct Preset {
     pub reward: RewardConfig,
     /// Table-1 grid.
     pub grid: GridSpec,
-    /// PPO hyperparameters.
+    /// PPO hyperparameters (before [`Preset::on_terrain`]).
     pub ppo: PpoConfig,
-    /// Domain randomization and observation noise in training.
+    /// Domain randomization and observation noise in training (before
+    /// [`Preset::on_terrain`]).
     pub domain_rand: DomainRandConfig,
     /// Randomized episode starts.
     pub reset: ResetConfig,
+    /// What differs by terrain (`[terrain.<kind>.ppo]`, `[terrain.<kind>.domain_rand]`).
+    pub terrain: BTreeMap<TerrainKind, TerrainOverrides>,
     /// sha256 of the preset file and the URDF: checkpoints record it.
     pub digest: String,
 }
@@ -188,7 +194,24 @@ impl Preset {
             ppo: file.ppo,
             domain_rand: file.domain_rand,
             reset: file.reset,
+            terrain: file.terrain,
             digest,
+        })
+    }
+
+    /// This preset as a cell on `terrain` trains it: `ppo` and `domain_rand` with the
+    /// terrain's `[terrain.<kind>.*]` tables laid over them (checked when it was loaded).
+    pub fn on_terrain(&self, terrain: TerrainKind) -> Result<Preset> {
+        let (ppo, domain_rand) = gaitsweep_model::preset::settings_on(
+            &self.ppo,
+            &self.domain_rand,
+            &self.terrain,
+            terrain,
+        )?;
+        Ok(Preset {
+            ppo,
+            domain_rand,
+            ..self.clone()
         })
     }
 
@@ -322,6 +345,53 @@ mod tests {
         assert_eq!(c.forward_speed, a.commands.forward_speed);
         assert_eq!(c.forward_command(0.05), 0.05, "off when a preset sets 0");
         assert_eq!(c.forward_command(1.7), 1.7);
+    }
+
+    #[test]
+    fn settings_can_differ_by_terrain_and_bad_ones_are_named() {
+        let anymal = robots_dir().join("anymal").display().to_string();
+        let dir = tempfile::tempdir().unwrap();
+        let write = |extra: &str| {
+            std::fs::write(
+                dir.path().join("preset.toml"),
+                format!("base = {anymal:?}\n{extra}\n"),
+            )
+            .unwrap()
+        };
+        write(
+            "[terrain.stairs.ppo]\ninit_noise_std = 0.7\nnoise_decay_start = 40\n\
+             [terrain.stairs.domain_rand]\nadd_noise = false",
+        );
+        let p = Preset::load_from_dir(dir.path()).unwrap();
+        let stairs = p.on_terrain(TerrainKind::Stairs).unwrap();
+        assert_eq!(
+            (stairs.ppo.init_noise_std, stairs.ppo.noise_decay_start),
+            (0.7, 40)
+        );
+        assert!(!stairs.domain_rand.add_noise && p.domain_rand.add_noise);
+        assert_eq!(stairs.ppo.num_learning_epochs, p.ppo.num_learning_epochs);
+        assert_eq!(stairs.domain_rand.push_robots, p.domain_rand.push_robots);
+        let flat = p.on_terrain(TerrainKind::Flat).unwrap();
+        assert_eq!(
+            (flat.ppo, flat.domain_rand),
+            (p.ppo.clone(), p.domain_rand.clone())
+        );
+        for (extra, names) in [
+            (
+                "[terrain.stairs.ppo]\nbogus = 1.0",
+                ["terrain.stairs.ppo", "bogus"],
+            ),
+            (
+                "[terrain.rough.domain_rand]\nadd_noise = 3",
+                ["terrain.rough.domain_rand", "add_noise"],
+            ),
+            ("[terrain.rough.reward]\nw1 = 3", ["terrain", "reward"]),
+            ("[terrain.ice.ppo]\nentropy_coef = 0.0", ["ice", "rough"]),
+        ] {
+            write(extra);
+            let e = Preset::load_from_dir(dir.path()).unwrap_err().to_string();
+            assert!(names.iter().all(|n| e.contains(n)), "{extra}: {e}");
+        }
     }
 
     #[test]

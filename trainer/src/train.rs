@@ -198,6 +198,12 @@ fn validate(cfg: &CellRunConfig, p: &PpoParams) -> Result<()> {
             p.init_noise_std, p.final_noise_std
         ));
     }
+    if p.noise_decay_start > 0 && p.final_noise_std <= 0.0 {
+        return bad(format!(
+            "noise_decay_start = {} anneals nothing without final_noise_std > 0 (set both, or neither)",
+            p.noise_decay_start
+        ));
+    }
     if !(cfg.w1.is_finite() && cfg.w2.is_finite()) {
         return bad(format!("cell {} is not finite", cell_label(cfg.w1, cfg.w2)));
     }
@@ -276,7 +282,7 @@ pub fn train_cell_with(
     opts: &TrainOptions,
     observer: &mut dyn TrainObserver,
 ) -> Result<CellOutcome> {
-    let preset = Preset::load(&cfg.robot)?;
+    let preset = Preset::load(&cfg.robot)?.on_terrain(cfg.terrain)?;
     let mut pcfg = preset.ppo.clone();
     pcfg.apply_overrides(&cfg.ppo_overrides)?;
     let params = ppo_params(&pcfg);

@@ -98,6 +98,48 @@ fn an_annealed_std_follows_its_schedule_and_the_mean_still_learns() {
     );
 }
 
+#[test]
+fn a_delayed_anneal_starts_from_the_learned_std_of_each_dimension() {
+    tch::set_num_threads(1);
+    let seed = 7;
+    let params = PpoParams {
+        final_noise_std: 0.2,
+        noise_decay_start: 10,
+        noise_decay_epochs: 20,
+        entropy_coef: 0.01,
+        ..toy_params()
+    };
+    let ppo = Ppo::new(4, 2, params, Device::Cpu, seed);
+    assert_eq!(
+        ppo.scheduled_noise_std(0),
+        None,
+        "no fixed schedule from epoch 0"
+    );
+    let mut runner = Runner::new(PointMass::new(128, seed), ppo, seed, 0, "toy".into());
+    let log_std =
+        |ppo: &Ppo| Vec::<f64>::try_from(ppo.model.log_std.to_kind(tch::Kind::Double)).unwrap();
+    for _ in 0..10 {
+        runner.run_epoch().unwrap();
+    }
+    let learned = log_std(&runner.ppo);
+    assert!(
+        learned.iter().all(|l| (l - 0.5f64.ln()).abs() > 1e-4) && learned[0] != learned[1],
+        "the std is learned, per dimension, before the anneal starts: {learned:?}"
+    );
+    for epoch in 10..40 {
+        runner.run_epoch().unwrap();
+        let frac = (f64::from(epoch - 10) / 20.0).min(1.0);
+        let got = log_std(&runner.ppo);
+        for (g, l) in got.iter().zip(&learned) {
+            let want = l * (1.0 - frac) + 0.2f64.ln() * frac;
+            assert!(
+                (g - want).abs() < 1e-5,
+                "epoch {epoch}: {got:?}, learned {learned:?}"
+            );
+        }
+    }
+}
+
 /// Wraps the toy and poisons one observation at a given step.
 struct Poisoned {
     inner: PointMass,

@@ -276,9 +276,13 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     configure_threads(a.threads);
     let preset = Preset::load(&a.robot)?;
     let agents = a.agents.unwrap_or(preset.grid.agents_per_cell);
-    let mut pcfg = preset.ppo.clone();
-    pcfg.apply_overrides(&parse_overrides(&a.set)?)?;
-    let params = train::ppo_params(&pcfg);
+    let overrides = parse_overrides(&a.set)?;
+    let params_on = |p: &Preset| -> Result<_> {
+        let mut pcfg = p.ppo.clone();
+        pcfg.apply_overrides(&overrides)?;
+        Ok(train::ppo_params(&pcfg))
+    };
+    let params = params_on(&preset)?;
     let mid = |v: Vec<f64>| v.iter().sum::<f64>() / v.len() as f64;
     let (w1, w2) = (mid(preset.grid.w1.values()), mid(preset.grid.w2.values()));
     println!(
@@ -287,6 +291,8 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         tch::get_num_threads(), cores()
     );
     for terrain in &a.terrain {
+        let preset = preset.on_terrain(*terrain)?;
+        let params = params_on(&preset)?;
         let env = VecEnv::new(
             &preset,
             EnvConfig {

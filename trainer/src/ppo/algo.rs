@@ -47,6 +47,9 @@ pub struct Ppo {
     pub normalizer: ObsNormalizer,
     /// Where the networks live.
     pub device: Device,
+    /// Whether the action std follows the noise schedule in the current epoch (set by
+    /// [`Ppo::apply_noise_schedule`]); the update then leaves it alone.
+    std_scheduled: bool,
 }
 
 impl Ppo {
@@ -82,6 +85,7 @@ impl Ppo {
             optim,
             normalizer: ObsNormalizer::new(obs_dim),
             device,
+            std_scheduled: false,
         }
     }
 
@@ -123,10 +127,12 @@ impl Ppo {
         Ok(())
     }
 
-    /// The annealed action std at `epoch`, or `None` when the std is learned.
+    /// The annealed action std at `epoch` of a schedule that starts at epoch 0 from
+    /// `init_noise_std`, or `None` when the std is learned or its annealing starts later
+    /// (from the values it learned, see [`Ppo::apply_noise_schedule`]).
     pub fn scheduled_noise_std(&self, epoch: u32) -> Option<f64> {
         let p = &self.params;
-        if p.final_noise_std <= 0.0 {
+        if p.final_noise_std <= 0.0 || p.noise_decay_start > 0 {
             return None;
         }
         let frac = if p.noise_decay_epochs == 0 {
@@ -137,13 +143,37 @@ impl Ppo {
         Some((p.init_noise_std.ln() * (1.0 - frac) + p.final_noise_std.ln() * frac).exp())
     }
 
-    /// Sets the action std to its annealed value at `epoch` (no-op when it is learned).
+    /// Sets the action std for `epoch`, called once at the start of each epoch. Learned
+    /// (no-op) without `final_noise_std` or before `noise_decay_start`. With a start of 0
+    /// it is [`Ppo::scheduled_noise_std`]. With a later start each dimension keeps the
+    /// value it learned at the start epoch and then moves, epoch by epoch, along the
+    /// straight line in log-std to `ln(final_noise_std)` at `start + noise_decay_epochs`:
+    /// one step of `1/(epochs left)` of the remaining distance, so a resumed run needs no
+    /// other state than the std in its checkpoint.
     pub fn apply_noise_schedule(&mut self, epoch: u32) {
-        if let Some(std) = self.scheduled_noise_std(epoch) {
-            tch::no_grad(|| {
-                let _ = self.model.log_std.fill_(std.ln());
-            });
+        let fixed = self.scheduled_noise_std(epoch);
+        let p = &self.params;
+        let e = epoch as usize;
+        self.std_scheduled = p.final_noise_std > 0.0 && e >= p.noise_decay_start;
+        if !self.std_scheduled {
+            return;
         }
+        let (start, end) = (
+            p.noise_decay_start,
+            p.noise_decay_start + p.noise_decay_epochs,
+        );
+        let target = p.final_noise_std.ln();
+        let log_std = &mut self.model.log_std;
+        tch::no_grad(|| {
+            if let Some(std) = fixed {
+                let _ = log_std.fill_(std.ln());
+            } else if e >= end {
+                let _ = log_std.fill_(target);
+            } else if e > start {
+                let step = (log_std.detach() * -1.0 + target) / (end - e + 1) as f64;
+                let _ = log_std.g_add_(&step);
+            }
+        });
     }
 
     /// Runs the learning epochs over `batch` (mini-batches shuffled with `rng`) and
@@ -237,7 +267,7 @@ impl Ppo {
                     return Err(non_finite("gradients"));
                 }
                 self.optim.step();
-                if p.final_noise_std > 0.0 {
+                if self.std_scheduled {
                     // An annealed std is not a parameter: undo the optimiser's step on it.
                     tch::no_grad(|| {
                         let _ = self.model.log_std.copy_(&old_log_std);
