@@ -405,20 +405,14 @@ impl PpoConfig {
             if !v.is_finite() {
                 return Err(bad("value must be finite"));
             }
-            let whole = || -> Result<usize> {
-                if v >= 1.0 && v.fract() == 0.0 {
+            let whole_from = |min: f64, what: &str| -> Result<usize> {
+                if v >= min && v.fract() == 0.0 {
                     Ok(v as usize)
                 } else {
-                    Err(bad("expected a positive whole number"))
+                    Err(bad(what))
                 }
             };
-            let whole_or_zero = || -> Result<usize> {
-                if v >= 0.0 && v.fract() == 0.0 {
-                    Ok(v as usize)
-                } else {
-                    Err(bad("expected a whole number >= 0"))
-                }
-            };
+            let whole = || whole_from(1.0, "expected a positive whole number");
             match key.as_str() {
                 "init_noise_std" => self.init_noise_std = v,
                 "clip_param" => self.clip_param = v,
@@ -436,7 +430,9 @@ impl PpoConfig {
                 "clip_value_loss" => self.clip_value_loss = v != 0.0,
                 "final_noise_std" => self.final_noise_std = v,
                 "noise_decay_epochs" => self.noise_decay_epochs = whole()?,
-                "noise_decay_start" => self.noise_decay_start = whole_or_zero()?,
+                "noise_decay_start" => {
+                    self.noise_decay_start = whole_from(0.0, "expected a whole number >= 0")?
+                }
                 _ => {
                     return Err(bad(
                         "unknown hyperparameter; known: init_noise_std, clip_param, gamma, lam, \
