@@ -497,15 +497,15 @@ pub struct PresetFile {
     /// How episodes start (default: at the default pose, at rest).
     #[serde(default)]
     pub reset: ResetConfig,
-    /// Settings that differ by terrain (`[terrain.rough.ppo]`, `[terrain.rough.domain_rand]`):
-    /// laid over `ppo` and `domain_rand` for a cell on that terrain (a spec's own `ppo`
-    /// overrides go over them).
+    /// Settings that differ by terrain (`[terrain.rough.ppo]`, `[terrain.rough.domain_rand]`,
+    /// `[terrain.stairs.reward]`): laid over `ppo`, `domain_rand` and `reward` for a cell on
+    /// that terrain (a spec's own `ppo` overrides go over them).
     #[serde(default)]
     pub terrain: BTreeMap<TerrainKind, TerrainOverrides>,
 }
 
-/// What a preset sets differently on one terrain: partial `[ppo]` and `[domain_rand]`
-/// tables, key by key over the preset's own.
+/// What a preset sets differently on one terrain: partial `[ppo]`, `[domain_rand]` and
+/// `[reward]` tables, key by key over the preset's own.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct TerrainOverrides {
@@ -515,25 +515,40 @@ pub struct TerrainOverrides {
     /// Keys of `[domain_rand]`.
     #[serde(default)]
     pub domain_rand: toml::Table,
+    /// Keys of `[reward]` (the fixed weights; w1 and w2 stay the grid's).
+    #[serde(default)]
+    pub reward: toml::Table,
 }
 
-/// The `ppo` and `domain_rand` of a cell on `terrain`: the preset's, with that terrain's
-/// overrides from `by_terrain` laid over them.
+/// The settings a cell on one terrain trains with.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TerrainSettings {
+    /// PPO hyperparameters.
+    pub ppo: PpoConfig,
+    /// Domain randomization and observation noise.
+    pub domain_rand: DomainRandConfig,
+    /// Fixed reward weights.
+    pub reward: RewardConfig,
+}
+
+/// The `ppo`, `domain_rand` and `reward` of a cell on `terrain`: the preset's, with that
+/// terrain's overrides from `by_terrain` laid over them.
 pub fn settings_on(
-    ppo: &PpoConfig,
-    domain_rand: &DomainRandConfig,
+    base: TerrainSettings,
     by_terrain: &BTreeMap<TerrainKind, TerrainOverrides>,
     terrain: TerrainKind,
-) -> Result<(PpoConfig, DomainRandConfig)> {
+) -> Result<TerrainSettings> {
     let Some(o) = by_terrain.get(&terrain) else {
-        return Ok((ppo.clone(), domain_rand.clone()));
+        return Ok(base);
     };
     let bad =
         |table: &str, e: String| Error::InvalidArgument(format!("terrain.{terrain}.{table}: {e}"));
-    Ok((
-        lay_over(ppo, &o.ppo).map_err(|e| bad("ppo", e))?,
-        lay_over(domain_rand, &o.domain_rand).map_err(|e| bad("domain_rand", e))?,
-    ))
+    Ok(TerrainSettings {
+        ppo: lay_over(&base.ppo, &o.ppo).map_err(|e| bad("ppo", e))?,
+        domain_rand: lay_over(&base.domain_rand, &o.domain_rand)
+            .map_err(|e| bad("domain_rand", e))?,
+        reward: lay_over(&base.reward, &o.reward).map_err(|e| bad("reward", e))?,
+    })
 }
 
 fn lay_over<T: Serialize + DeserializeOwned>(
@@ -614,9 +629,17 @@ impl PresetFile {
         Ok((file, texts))
     }
 
-    /// The `ppo` and `domain_rand` of a cell on `terrain` (see [`settings_on`]).
-    pub fn settings_on(&self, terrain: TerrainKind) -> Result<(PpoConfig, DomainRandConfig)> {
-        settings_on(&self.ppo, &self.domain_rand, &self.terrain, terrain)
+    /// The `ppo`, `domain_rand` and `reward` of a cell on `terrain` (see [`settings_on`]).
+    pub fn settings_on(&self, terrain: TerrainKind) -> Result<TerrainSettings> {
+        settings_on(
+            TerrainSettings {
+                ppo: self.ppo.clone(),
+                domain_rand: self.domain_rand.clone(),
+                reward: self.reward.clone(),
+            },
+            &self.terrain,
+            terrain,
+        )
     }
 }
 

@@ -315,20 +315,18 @@ impl Agent {
             || base.pos.z - self.world.tile().height(base.pos.x, base.pos.y)
                 < 0.35 * p.nominal_base_height;
         let timeout = !fell && self.step_in_episode >= max_steps;
-        if fell && std::env::var_os("DBG_FALLS").is_some() {
-            eprintln!(
-                "FALL step {} contact {} gz {:.2} h {:.3} cmd {:.2} vh {:.2} {:.2} q {:?}",
-                self.step_in_episode,
-                self.world.base_contact(),
-                grav_b.z,
-                base.pos.z - self.world.tile().height(base.pos.x, base.pos.y),
-                self.cmd.speed,
-                vh.x,
-                vh.y,
-                self.q
-                    .iter()
-                    .map(|v| (v * 100.0).round() / 100.0)
-                    .collect::<Vec<_>>()
+        if fell {
+            tracing::debug!(
+                target: "gaitsweep_sim::falls",
+                step = self.step_in_episode,
+                base_contact = self.world.base_contact(),
+                gravity_z = grav_b.z,
+                height = base.pos.z - self.world.tile().height(base.pos.x, base.pos.y),
+                cmd_speed = self.cmd.speed,
+                forward = vh.x,
+                lateral = vh.y,
+                q = ?self.q,
+                "robot fell"
             );
         }
 

@@ -295,6 +295,20 @@ impl VecEnv {
                 t.copy_from_slice(&a.terms.values);
                 let mut done_score = None;
                 if rep.done {
+                    let b = a.world.base().pos;
+                    tracing::debug!(
+                        target: "gaitsweep_sim::episodes",
+                        robot = i,
+                        variant = i % 2,
+                        level = a.level,
+                        walked = a.walked(),
+                        seconds = a.episode_seconds(p),
+                        cmd_speed = a.cmd.speed,
+                        heading = a.cmd.heading,
+                        timeout = rep.timeout,
+                        base_height = b.z - a.world.tile().height(b.x, b.y),
+                        "episode ended"
+                    );
                     done_score = Some(a.score.clone());
                     if auto_reset {
                         if curriculum {

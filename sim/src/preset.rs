@@ -11,7 +11,7 @@ use crate::terrain::TerrainKind;
 pub use gaitsweep_model::preset::{
     available, preset_dir, robots_dir, AxisSpec, CommandConfig, ControlConfig, DomainRandConfig,
     GridSpec, JointBackend, ObservationConfig, PpoConfig, PresetFile, ResetConfig, RewardConfig,
-    TerrainOverrides,
+    TerrainOverrides, TerrainSettings,
 };
 
 /// A robot preset: its URDF, control, observation, reward and grid settings.
@@ -199,18 +199,26 @@ impl Preset {
         })
     }
 
-    /// This preset as a cell on `terrain` trains it: `ppo` and `domain_rand` with the
-    /// terrain's `[terrain.<kind>.*]` tables laid over them (checked when it was loaded).
+    /// This preset as a cell on `terrain` trains it: `ppo`, `domain_rand` and `reward` with
+    /// the terrain's `[terrain.<kind>.*]` tables laid over them (checked when it was loaded).
     pub fn on_terrain(&self, terrain: TerrainKind) -> Result<Preset> {
-        let (ppo, domain_rand) = gaitsweep_model::preset::settings_on(
-            &self.ppo,
-            &self.domain_rand,
+        let TerrainSettings {
+            ppo,
+            domain_rand,
+            reward,
+        } = gaitsweep_model::preset::settings_on(
+            TerrainSettings {
+                ppo: self.ppo.clone(),
+                domain_rand: self.domain_rand.clone(),
+                reward: self.reward.clone(),
+            },
             &self.terrain,
             terrain,
         )?;
         Ok(Preset {
             ppo,
             domain_rand,
+            reward,
             ..self.clone()
         })
     }
@@ -360,7 +368,8 @@ mod tests {
         };
         write(
             "[terrain.stairs.ppo]\ninit_noise_std = 0.7\nnoise_decay_start = 40\n\
-             [terrain.stairs.domain_rand]\nadd_noise = false",
+             [terrain.stairs.domain_rand]\nadd_noise = false\n\
+             [terrain.stairs.reward]\nw3_heading = 4.0",
         );
         let p = Preset::load_from_dir(dir.path()).unwrap();
         let stairs = p.on_terrain(TerrainKind::Stairs).unwrap();
@@ -369,12 +378,14 @@ mod tests {
             (0.7, 40)
         );
         assert!(!stairs.domain_rand.add_noise && p.domain_rand.add_noise);
+        assert_eq!((stairs.reward.w3_heading, p.reward.w3_heading), (4.0, 0.5));
+        assert_eq!(stairs.reward.lin_vel_z, p.reward.lin_vel_z);
         assert_eq!(stairs.ppo.num_learning_epochs, p.ppo.num_learning_epochs);
         assert_eq!(stairs.domain_rand.push_robots, p.domain_rand.push_robots);
         let flat = p.on_terrain(TerrainKind::Flat).unwrap();
         assert_eq!(
-            (flat.ppo, flat.domain_rand),
-            (p.ppo.clone(), p.domain_rand.clone())
+            (flat.ppo, flat.domain_rand, flat.reward),
+            (p.ppo.clone(), p.domain_rand.clone(), p.reward.clone())
         );
         for (extra, names) in [
             (
@@ -385,7 +396,11 @@ mod tests {
                 "[terrain.rough.domain_rand]\nadd_noise = 3",
                 ["terrain.rough.domain_rand", "add_noise"],
             ),
-            ("[terrain.rough.reward]\nw1 = 3", ["terrain", "reward"]),
+            (
+                "[terrain.rough.reward]\nw1 = 3",
+                ["terrain.rough.reward", "w1"],
+            ),
+            ("[terrain.rough.gait]\nx = 3", ["terrain", "gait"]),
             ("[terrain.ice.ppo]\nentropy_coef = 0.0", ["ice", "rough"]),
         ] {
             write(extra);

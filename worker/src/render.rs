@@ -45,6 +45,10 @@ pub struct RenderArgs {
     /// Seed of the spawn, terrain variant and commands.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Terrain variant to walk on: stairs and slopes 0 = up to the centre (the robot starts
+    /// on top), 1 = down (it starts in a pit); rough: one of two random fields.
+    #[arg(long, default_value_t = 0)]
+    pub variant: usize,
 }
 
 /// What [`render`] produced.
@@ -103,7 +107,7 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
         EnvConfig {
             mode: gaitsweep_sim::EnvMode::Eval,
             terrain,
-            num_envs: 1,
+            num_envs: a.variant + 1,
             w1: meta.w1 as f32,
             w2: meta.w2 as f32,
             seed: a.seed,
@@ -120,23 +124,37 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
     let fps = (1.0 / (every as f32 * dt)).round().clamp(1.0, 100.0) as u16;
     let steps = (a.seconds / dt).round().max(1.0) as usize;
     let mut distance = 0.0f32;
+    let r0 = a.variant;
     let mut obs = env.observations().to_vec();
-    let mut actions = vec![0.0f32; env.act_dim()];
-    let mut frames = vec![env.render_frame(0)];
+    let mut actions = vec![0.0f32; env.act_dim() * env.num_envs()];
+    let mut frames = vec![env.render_frame(r0)];
     let mut fell = false;
     let mut walked = 0;
     for step in 1..=steps {
         ppo.act_deterministic(&obs, &mut actions)?;
         let r = env.step(&actions)?;
-        let (done, timeout) = (r.dones[0], r.timeouts[0]);
+        let (done, timeout) = (r.dones[r0], r.timeouts[r0]);
         obs.copy_from_slice(r.obs);
         walked = step;
         if !done {
             // After a done the robot has already started a new episode.
-            distance = env.walked(0);
+            distance = env.walked(r0);
+        }
+        if step % every as usize == 0 {
+            let (pos, yaw) = env.base_pose(r0);
+            tracing::debug!(
+                t = step as f32 * dt,
+                x = pos[0],
+                y = pos[1],
+                z = pos[2],
+                ground = env.tile_height(r0, pos[0], pos[1]),
+                yaw,
+                walked = env.walked(r0),
+                "render step"
+            );
         }
         if step % every as usize == 0 || done {
-            frames.push(env.render_frame(0));
+            frames.push(env.render_frame(r0));
         }
         if done {
             fell = !timeout;
@@ -146,7 +164,7 @@ pub fn render(a: &RenderArgs) -> Result<Rendered> {
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(Error::io(format!("create {}", dir.display())))?;
     }
-    write_gif(&a.out, env.tile(0), &frames, env.body_half_extents(), fps)?;
+    write_gif(&a.out, env.tile(r0), &frames, env.body_half_extents(), fps)?;
     Ok(Rendered {
         path: a.out.clone(),
         frames: frames.len(),
