@@ -534,20 +534,25 @@ pub struct TerrainSettings {
 /// The `ppo`, `domain_rand` and `reward` of a cell on `terrain`: the preset's, with that
 /// terrain's overrides from `by_terrain` laid over them.
 pub fn settings_on(
-    base: TerrainSettings,
+    ppo: &PpoConfig,
+    domain_rand: &DomainRandConfig,
+    reward: &RewardConfig,
     by_terrain: &BTreeMap<TerrainKind, TerrainOverrides>,
     terrain: TerrainKind,
 ) -> Result<TerrainSettings> {
     let Some(o) = by_terrain.get(&terrain) else {
-        return Ok(base);
+        return Ok(TerrainSettings {
+            ppo: ppo.clone(),
+            domain_rand: domain_rand.clone(),
+            reward: reward.clone(),
+        });
     };
     let bad =
         |table: &str, e: String| Error::InvalidArgument(format!("terrain.{terrain}.{table}: {e}"));
     Ok(TerrainSettings {
-        ppo: lay_over(&base.ppo, &o.ppo).map_err(|e| bad("ppo", e))?,
-        domain_rand: lay_over(&base.domain_rand, &o.domain_rand)
-            .map_err(|e| bad("domain_rand", e))?,
-        reward: lay_over(&base.reward, &o.reward).map_err(|e| bad("reward", e))?,
+        ppo: lay_over(ppo, &o.ppo).map_err(|e| bad("ppo", e))?,
+        domain_rand: lay_over(domain_rand, &o.domain_rand).map_err(|e| bad("domain_rand", e))?,
+        reward: lay_over(reward, &o.reward).map_err(|e| bad("reward", e))?,
     })
 }
 
@@ -632,11 +637,9 @@ impl PresetFile {
     /// The `ppo`, `domain_rand` and `reward` of a cell on `terrain` (see [`settings_on`]).
     pub fn settings_on(&self, terrain: TerrainKind) -> Result<TerrainSettings> {
         settings_on(
-            TerrainSettings {
-                ppo: self.ppo.clone(),
-                domain_rand: self.domain_rand.clone(),
-                reward: self.reward.clone(),
-            },
+            &self.ppo,
+            &self.domain_rand,
+            &self.reward,
             &self.terrain,
             terrain,
         )

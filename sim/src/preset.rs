@@ -207,11 +207,9 @@ impl Preset {
             domain_rand,
             reward,
         } = gaitsweep_model::preset::settings_on(
-            TerrainSettings {
-                ppo: self.ppo.clone(),
-                domain_rand: self.domain_rand.clone(),
-                reward: self.reward.clone(),
-            },
+            &self.ppo,
+            &self.domain_rand,
+            &self.reward,
             &self.terrain,
             terrain,
         )?;
