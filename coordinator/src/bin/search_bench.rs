@@ -140,14 +140,22 @@ async fn main() -> anyhow::Result<()> {
                 rec.w1_values[best_point.0],
                 rec.w2_values[best_point.1],
             );
-            let mut a = Vec::new();
-            let mut c = Vec::new();
-            let mut h = Vec::new();
-            for seed in 0..replays {
-                a.push(searchbench::replay_asha(&rec, &asha, seed).map_err(anyhow::Error::msg)?);
-                c.push(searchbench::replay_cmaes(&rec, &cmaes, seed).map_err(anyhow::Error::msg)?);
-                h.push(searchbench::replay_cmaes(&rec, &halved, seed).map_err(anyhow::Error::msg)?);
-            }
+            let g = (0..replays)
+                .map(|seed| searchbench::replay_grid_single(&rec, seed))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(anyhow::Error::msg)?;
+            let a = (0..replays)
+                .map(|seed| searchbench::replay_asha(&rec, &asha, seed))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(anyhow::Error::msg)?;
+            // A CMA-ES setting whose budget pays for no generation (a small grid, a large
+            // population) gets a row that says so; the other strategies still print.
+            let c: Result<Vec<_>, String> = (0..replays)
+                .map(|seed| searchbench::replay_cmaes(&rec, &cmaes, seed))
+                .collect();
+            let h: Result<Vec<_>, String> = (0..replays)
+                .map(|seed| searchbench::replay_cmaes(&rec, &halved, seed))
+                .collect();
             println!(
                 "{:<52} {:>8} {:>8} {:>12} {:>10} {:>12} {:>10}",
                 "strategy", "replays", "epochs", "mean regret", "max regret", "P(best)", "P(<= 5%)"
@@ -161,20 +169,33 @@ async fn main() -> anyhow::Result<()> {
                 p_within_5pct: 1.0,
             };
             for (name, s) in [
-                ("grid (every point to the end)".to_string(), grid),
+                ("grid (every point to the end)".to_string(), Ok(grid)),
+                (
+                    "grid, one replicate drawn per point".to_string(),
+                    Ok(searchbench::summarise(&g)),
+                ),
                 (
                     format!("asha rungs {rungs:?}, eta {reduction}, {workers} workers"),
-                    searchbench::summarise(&a),
+                    Ok(searchbench::summarise(&a)),
                 ),
                 (
                     format!("cma-es pop {population}, sigma {sigma}, budget {budget_fraction:.3}"),
-                    searchbench::summarise(&c),
+                    c.map(|c| searchbench::summarise(&c)),
                 ),
                 (
-                    format!("cma-es + halving at asha's rungs, budget {budget_fraction:.3}"),
-                    searchbench::summarise(&h),
+                    format!(
+                        "cma-es pop {population} + halving at asha's rungs, budget {budget_fraction:.3}"
+                    ),
+                    h.map(|h| searchbench::summarise(&h)),
                 ),
             ] {
+                let s = match s {
+                    Ok(s) => s,
+                    Err(why) => {
+                        println!("{name:<52} not replayed: {why}");
+                        continue;
+                    }
+                };
                 println!(
                     "{name:<52} {:>8} {:>7.1}% {:>12.4} {:>10.4} {:>11.1}% {:>9.1}%",
                     s.replays,
