@@ -157,7 +157,7 @@ async fn main() -> anyhow::Result<()> {
                 .map(|seed| searchbench::replay_cmaes(&rec, &halved, seed))
                 .collect();
             println!(
-                "{:<52} {:>8} {:>8} {:>12} {:>10} {:>12} {:>10}",
+                "{:<58} {:>8} {:>8} {:>12} {:>10} {:>12} {:>10}",
                 "strategy", "replays", "epochs", "mean regret", "max regret", "P(best)", "P(<= 5%)"
             );
             let grid = Summary {
@@ -192,12 +192,12 @@ async fn main() -> anyhow::Result<()> {
                 let s = match s {
                     Ok(s) => s,
                     Err(why) => {
-                        println!("{name:<52} not replayed: {why}");
+                        println!("{name:<58} not replayed: {why}");
                         continue;
                     }
                 };
                 println!(
-                    "{name:<52} {:>8} {:>7.1}% {:>12.4} {:>10.4} {:>11.1}% {:>9.1}%",
+                    "{name:<58} {:>8} {:>7.1}% {:>12.4} {:>10.4} {:>11.1}% {:>9.1}%",
                     s.replays,
                     100.0 * s.epoch_fraction,
                     s.mean_regret,
