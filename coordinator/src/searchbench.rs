@@ -522,31 +522,49 @@ mod tests {
         }
     }
 
+    /// Reads and validates a recording kept in the repository, checks its shape (w1 points,
+    /// w2 points, epochs), grid best and successive-halving rungs from `min_epochs` with
+    /// reduction 3, and summarises 20 ASHA replays on 4 workers.
+    fn replay_kept_recording(
+        json: &str,
+        shape: (usize, usize, u32),
+        best_point: (usize, usize),
+        best_mean: f64,
+        min_epochs: u32,
+        rungs: &[u32],
+    ) -> Summary {
+        let rec: Recording = serde_json::from_str(json).unwrap();
+        rec.validate().unwrap();
+        assert_eq!(
+            (rec.w1_values.len(), rec.w2_values.len(), rec.epochs),
+            shape
+        );
+        let (best, mean) = rec.best();
+        assert_eq!(best, best_point);
+        assert!((mean - best_mean).abs() < 1e-3, "{mean}");
+        let s = AshaSetup {
+            min_epochs,
+            reduction: 3,
+            workers: 4,
+        };
+        assert_eq!(asha_rungs(&rec, &s).unwrap(), rungs);
+        let runs: Vec<Replay> = (0..20).map(|k| replay_asha(&rec, &s, k).unwrap()).collect();
+        summarise(&runs)
+    }
+
     /// The real recording kept in the repository (BENCHMARKS.md, "Search benchmark")
     /// reads, validates and replays: its grid best is the recorded one and halving stays
     /// at its rungs' share of the epochs.
     #[test]
     fn the_recorded_anymal_grid_replays() {
-        let rec: Recording = serde_json::from_str(include_str!(
-            "../../tests/data/search-grid-anymal-flat-4x7.json"
-        ))
-        .unwrap();
-        rec.validate().unwrap();
-        assert_eq!(
-            (rec.w1_values.len(), rec.w2_values.len(), rec.epochs),
-            (4, 7, 180)
+        let sum = replay_kept_recording(
+            include_str!("../../tests/data/search-grid-anymal-flat-4x7.json"),
+            (4, 7, 180),
+            (1, 3),
+            0.3316,
+            20,
+            &[20, 60, 180],
         );
-        let (best, mean) = rec.best();
-        assert_eq!(best, (1, 3));
-        assert!((mean - 0.3316).abs() < 1e-3, "{mean}");
-        let s = AshaSetup {
-            min_epochs: 20,
-            reduction: 3,
-            workers: 4,
-        };
-        assert_eq!(asha_rungs(&rec, &s).unwrap(), vec![20, 60, 180]);
-        let runs: Vec<Replay> = (0..20).map(|k| replay_asha(&rec, &s, k).unwrap()).collect();
-        let sum = summarise(&runs);
         assert!(sum.epoch_fraction < 0.4, "{sum:?}");
     }
 
@@ -555,26 +573,14 @@ mod tests {
     /// its grid best is the recorded one, and halving stays under a third of the epochs.
     #[test]
     fn the_walking_anymal_grid_replays() {
-        let rec: Recording = serde_json::from_str(include_str!(
-            "../../tests/data/search-grid-anymal-flat-4x4-walking.json"
-        ))
-        .unwrap();
-        rec.validate().unwrap();
-        assert_eq!(
-            (rec.w1_values.len(), rec.w2_values.len(), rec.epochs),
-            (4, 4, 90)
+        let sum = replay_kept_recording(
+            include_str!("../../tests/data/search-grid-anymal-flat-4x4-walking.json"),
+            (4, 4, 90),
+            (3, 3),
+            0.7701,
+            10,
+            &[10, 30, 90],
         );
-        let (best, mean) = rec.best();
-        assert_eq!(best, (3, 3));
-        assert!((mean - 0.7701).abs() < 1e-3, "{mean}");
-        let s = AshaSetup {
-            min_epochs: 10,
-            reduction: 3,
-            workers: 4,
-        };
-        assert_eq!(asha_rungs(&rec, &s).unwrap(), vec![10, 30, 90]);
-        let runs: Vec<Replay> = (0..20).map(|k| replay_asha(&rec, &s, k).unwrap()).collect();
-        let sum = summarise(&runs);
         assert!(sum.epoch_fraction < 1.0 / 3.0, "{sum:?}");
     }
 
