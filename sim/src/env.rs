@@ -130,12 +130,15 @@ impl VecEnv {
             max_steps,
             auto_reset: true,
             mass: model.total_mass,
+            // The box the render draws: the base's first collision shape's bounds in the
+            // base frame (a box, or legged_gym's cylinder along x).
             half_extents: model.links[0]
                 .shapes
-                .iter()
-                .find_map(|(_, s)| match s {
-                    crate::urdf::Shape::Cuboid(h) => Some(*h),
-                    _ => None,
+                .first()
+                .map(|(pose, s)| {
+                    crate::robot::shared_shape(s, preset.control.capsule_legs)
+                        .compute_aabb(pose)
+                        .half_extents()
                 })
                 .unwrap_or(rapier3d::math::Vector::splat(0.2)),
             obs: vec![0.0; n * preset.obs_dim()],

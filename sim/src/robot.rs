@@ -63,7 +63,7 @@ pub use gaitsweep_model::preset::JointBackend;
 /// The rapier shape of a URDF primitive. Cylinders become capsules of the same radius and
 /// length when `capsules` is set (legged_gym's `replace_cylinder_with_capsule`): rapier's
 /// capsule-terrain contacts are analytic, its cylinder ones iterative.
-fn shared_shape(shape: &Shape, capsules: bool) -> SharedShape {
+pub(crate) fn shared_shape(shape: &Shape, capsules: bool) -> SharedShape {
     match *shape {
         Shape::Cuboid(h) => SharedShape::cuboid(h.x, h.y, h.z),
         Shape::Cylinder(hh, r) if capsules => SharedShape::capsule_z(hh, r),
