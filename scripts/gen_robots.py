@@ -32,7 +32,7 @@ ROBOTS = {
     "anymal": dict(total=25.0, hip=1.4, thigh=1.6, shank=1.39, thigh_len=0.30, shank_len=0.30,
                    body=(0.9, 0.5, 0.2), hip_x=0.35, hip_y=0.15, hip_off=0.08, foot_r=0.03,
                    link_r=0.04, effort=80.0, vel=20.0, foot_gap=0.08,
-                   base_collider=("cylinder", 0.75, 0.1)),
+                   base_cylinder=(0.75, 0.1)),
     # total 260 kg, leg 15.47 kg, leg 1.1 m (0.55 + 0.55), body 2.5 x 0.9 (x 0.4 box)
     "heavy": dict(total=260.0, hip=5.0, thigh=6.0, shank=4.47, thigh_len=0.55, shank_len=0.55,
                   body=(2.5, 0.9, 0.4), hip_x=1.0, hip_y=0.3, hip_off=0.15, foot_r=0.06,
@@ -58,8 +58,8 @@ def urdf(name, p):
     legs_mass = p["hip"] + p["thigh"] + p["shank"]
     base_mass = p["total"] - 4 * legs_mass
     bx, by, bz = p["body"]
-    if "base_collider" in p:
-        _, length, radius = p["base_collider"]
+    if "base_cylinder" in p:
+        length, radius = p["base_cylinder"]
         base_geom = ('      <origin xyz="0 0 0" rpy="0 1.5707963 0"/>\n'
                      f'      <geometry><cylinder length="{length}" radius="{radius}"/></geometry>\n')
     else:

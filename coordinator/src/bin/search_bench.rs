@@ -140,22 +140,17 @@ async fn main() -> anyhow::Result<()> {
                 rec.w1_values[best_point.0],
                 rec.w2_values[best_point.1],
             );
-            let g = (0..replays)
-                .map(|seed| searchbench::replay_grid_single(&rec, seed))
-                .collect::<Result<Vec<_>, _>>()
+            let replay_all = |one: &dyn Fn(u64) -> Result<searchbench::Replay, String>| {
+                (0..replays).map(one).collect::<Result<Vec<_>, String>>()
+            };
+            let g = replay_all(&|seed| searchbench::replay_grid_single(&rec, seed))
                 .map_err(anyhow::Error::msg)?;
-            let a = (0..replays)
-                .map(|seed| searchbench::replay_asha(&rec, &asha, seed))
-                .collect::<Result<Vec<_>, _>>()
+            let a = replay_all(&|seed| searchbench::replay_asha(&rec, &asha, seed))
                 .map_err(anyhow::Error::msg)?;
             // A CMA-ES setting whose budget pays for no generation (a small grid, a large
             // population) gets a row that says so; the other strategies still print.
-            let c: Result<Vec<_>, String> = (0..replays)
-                .map(|seed| searchbench::replay_cmaes(&rec, &cmaes, seed))
-                .collect();
-            let h: Result<Vec<_>, String> = (0..replays)
-                .map(|seed| searchbench::replay_cmaes(&rec, &halved, seed))
-                .collect();
+            let c = replay_all(&|seed| searchbench::replay_cmaes(&rec, &cmaes, seed));
+            let h = replay_all(&|seed| searchbench::replay_cmaes(&rec, &halved, seed));
             println!(
                 "{:<58} {:>8} {:>8} {:>12} {:>10} {:>12} {:>10}",
                 "strategy", "replays", "epochs", "mean regret", "max regret", "P(best)", "P(<= 5%)"
