@@ -85,6 +85,13 @@ fn mix(seed: u64, i: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// Chebyshev distance (m) of (x, y) from the nearest sub-tile centre, for diagnostics.
+fn sub_tile_ring(x: f32, y: f32) -> f32 {
+    let half = crate::terrain::SUB_TILE / 2.0;
+    let c = |v: f32| ((v + half).rem_euclid(2.0 * half) - half).abs();
+    c(x).max(c(y))
+}
+
 impl VecEnv {
     /// Builds `cfg.num_envs` robots of `preset` on `cfg.terrain`.
     pub fn new(preset: &Preset, cfg: EnvConfig) -> Result<VecEnv> {
@@ -232,6 +239,16 @@ impl VecEnv {
         &self.obs
     }
 
+    /// Names of the terrain variants robots are dealt in turn (robot `i` gets variant
+    /// `i % len`), where the variants differ in kind: stairs and slopes start robots on
+    /// top of the pyramid or in its pit. Empty for flat and rough ground.
+    pub fn variant_names(&self) -> &'static [&'static str] {
+        match self.cfg.terrain {
+            TerrainKind::Stairs | TerrainKind::Slopes => &["top", "pit"],
+            TerrainKind::Flat | TerrainKind::Rough => &[],
+        }
+    }
+
     /// Difficulty level per robot.
     pub fn levels(&self) -> Vec<u8> {
         self.agents.iter().map(|a| a.level).collect()
@@ -310,6 +327,9 @@ impl VecEnv {
                         heading = a.cmd.heading,
                         timeout = rep.timeout,
                         base_height = b.z - a.world.tile().height(b.x, b.y),
+                        // Chebyshev distance from the nearest sub-tile centre: on stairs and
+                        // slopes below 1.5 m the robot is on the platform, near 4 m at a border.
+                        ring = sub_tile_ring(b.x, b.y),
                         "episode ended"
                     );
                     done_score = Some(a.score.clone());

@@ -155,6 +155,9 @@ impl VecEnvLike for SimEnv {
     fn levels(&self) -> Vec<u8> {
         self.env.levels()
     }
+    fn variant_names(&self) -> &'static [&'static str] {
+        self.env.variant_names()
+    }
     fn set_levels(&mut self, levels: &[u8]) -> bool {
         self.env.set_levels(levels).is_ok()
     }
@@ -220,6 +223,9 @@ pub fn epoch_metrics(s: &EpochStats, wall_seconds: f64) -> EpochMetrics {
     if let Some((mean, max)) = s.levels {
         v.insert("curriculum/mean_level".into(), mean);
         v.insert("curriculum/max_level".into(), max);
+    }
+    for (name, mean) in &s.variant_levels {
+        v.insert(format!("curriculum/mean_level_{name}"), *mean);
     }
     if let Some(r) = s.mean_return {
         v.insert("mean_return".into(), r);

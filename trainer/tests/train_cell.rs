@@ -243,3 +243,30 @@ fn sixty_epochs_on_the_simulator_raise_the_reward() {
         "no learning: mean reward per step {first:.4} at epochs 1-10, {last:.4} at 51-60"
     );
 }
+
+#[test]
+fn stairs_log_the_curriculum_of_top_and_pit_robots_apart() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut c = cfg(&dir.path().join("stairs"), 1, None);
+    c.terrain = TerrainKind::Stairs;
+    c.difficulty = None;
+    let mut obs = Collect::default();
+    train_cell(&c, &mut obs).unwrap();
+    let m = &obs.epochs[0].values;
+    for key in ["curriculum/mean_level_top", "curriculum/mean_level_pit"] {
+        assert!(
+            m.get(key).is_some_and(|v| (0.0..=9.0).contains(v)),
+            "metric {key} missing or out of range in {m:?}"
+        );
+    }
+
+    let mut obs = Collect::default();
+    train_cell(&cfg(&dir.path().join("flat"), 1, None), &mut obs).unwrap();
+    assert!(
+        !obs.epochs[0]
+            .values
+            .keys()
+            .any(|k| k.starts_with("curriculum/mean_level_")),
+        "flat ground has no terrain variants to split"
+    );
+}

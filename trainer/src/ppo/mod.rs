@@ -57,6 +57,11 @@ pub trait VecEnvLike {
     fn levels(&self) -> Vec<u8> {
         Vec::new()
     }
+    /// Names of the terrain variants robots are dealt in turn (robot `i` gets variant
+    /// `i % len`); the curriculum level is also logged per variant. Empty: one group.
+    fn variant_names(&self) -> &'static [&'static str] {
+        &[]
+    }
     /// Restores curriculum levels (applied by the next reseed); false when unsupported.
     fn set_levels(&mut self, _levels: &[u8]) -> bool {
         false

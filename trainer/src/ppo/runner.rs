@@ -42,6 +42,9 @@ pub struct EpochStats {
     /// Mean and largest terrain level of the robots after the epoch (legged_gym's
     /// `Episode/terrain_level`).
     pub levels: Option<(f64, f64)>,
+    /// Mean terrain level per terrain variant (e.g. stairs' `top` and `pit` robots), where
+    /// the environment deals robots variants that differ in kind.
+    pub variant_levels: Vec<(&'static str, f64)>,
 }
 
 impl EpochStats {
@@ -60,6 +63,25 @@ pub fn boundary_seed(seed: u64, epoch: u32) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     (z ^ (z >> 31)) & (i64::MAX as u64)
+}
+
+/// Mean level of the robots of each variant, where robot `i` has variant `i % names.len()`
+/// (empty without names).
+pub fn variant_means(levels: &[u8], names: &[&'static str]) -> Vec<(&'static str, f64)> {
+    let k = names.len();
+    names
+        .iter()
+        .enumerate()
+        .filter_map(|(v, &name)| {
+            let group: Vec<f64> = levels
+                .iter()
+                .skip(v)
+                .step_by(k)
+                .map(|&l| f64::from(l))
+                .collect();
+            (!group.is_empty()).then(|| (name, group.iter().sum::<f64>() / group.len() as f64))
+        })
+        .collect()
 }
 
 /// Drives one environment and one PPO learner epoch by epoch.
@@ -260,6 +282,7 @@ impl<E: VecEnvLike> Runner<E> {
             let mean = levels.iter().map(|&l| f64::from(l)).sum::<f64>() / levels.len() as f64;
             let max = levels.iter().copied().max().map_or(0.0, f64::from);
             stats.levels = Some((mean, max));
+            stats.variant_levels = variant_means(&levels, self.env.variant_names());
         }
         if !self.finished.is_empty() {
             let k = self.finished.len() as f64;
@@ -268,5 +291,19 @@ impl<E: VecEnvLike> Runner<E> {
                 Some(self.finished.iter().map(|e| e.1 as f64).sum::<f64>() / k);
         }
         Ok(stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::variant_means;
+
+    #[test]
+    fn variant_means_split_robots_by_index() {
+        let levels = [0, 4, 2, 6, 1];
+        let m = variant_means(&levels, &["top", "pit"]);
+        assert_eq!(m, vec![("top", 1.0), ("pit", 5.0)]);
+        assert!(variant_means(&levels, &[]).is_empty());
+        assert_eq!(variant_means(&[], &["top", "pit"]), vec![]);
     }
 }
