@@ -366,6 +366,12 @@ pub struct PpoConfig {
     /// `final_noise_std` at epoch `noise_decay_start + noise_decay_epochs`.
     #[serde(default)]
     pub noise_decay_start: usize,
+    /// Weight of rsl_rl's symmetry mirror loss (0: off, rsl_rl's default): the mean squared
+    /// difference between the action mean for the mirrored observation and the mirrored
+    /// action mean, added to the PPO loss, so the policy learns left and right alike. Needs
+    /// the preset's `mirror` joint map.
+    #[serde(default)]
+    pub mirror_loss_coef: f64,
 }
 
 impl Default for PpoConfig {
@@ -391,6 +397,7 @@ impl Default for PpoConfig {
             final_noise_std: 0.0,
             noise_decay_epochs: 0,
             noise_decay_start: 0,
+            mirror_loss_coef: 0.0,
         }
     }
 }
@@ -433,12 +440,15 @@ impl PpoConfig {
                 "noise_decay_start" => {
                     self.noise_decay_start = whole_from(0.0, "expected a whole number >= 0")?
                 }
+                "mirror_loss_coef" if v >= 0.0 => self.mirror_loss_coef = v,
+                "mirror_loss_coef" => return Err(bad("expected a value >= 0")),
                 _ => {
                     return Err(bad(
                         "unknown hyperparameter; known: init_noise_std, clip_param, gamma, lam, \
                          value_loss_coef, entropy_coef, learning_rate, desired_kl, adaptive_lr, \
                          max_grad_norm, num_learning_epochs, num_mini_batches, steps_per_env, \
-                         clip_value_loss, final_noise_std, noise_decay_epochs, noise_decay_start",
+                         clip_value_loss, final_noise_std, noise_decay_epochs, noise_decay_start, \
+                         mirror_loss_coef",
                     ))
                 }
             }
@@ -475,6 +485,11 @@ pub struct PresetFile {
     pub feet: Vec<String>,
     /// Default joint pose (rad), in `joints` order.
     pub default_pose: Vec<f32>,
+    /// The left-right mirror of the joints, in `joints` order: entry k names the joint whose
+    /// value the mirrored robot's joint k takes, with a leading `-` where the sign flips
+    /// (hip abduction). Empty: no mirror (the symmetry loss is then unavailable).
+    #[serde(default)]
+    pub mirror: Vec<String>,
     /// Standing base height (m).
     pub nominal_base_height: f32,
     /// Base height at spawn (m above the terrain).

@@ -7,6 +7,7 @@ pub mod agent;
 pub mod env;
 pub mod error;
 pub mod eval;
+pub mod mirror;
 pub mod preset;
 pub mod render;
 pub mod reward;
@@ -20,6 +21,7 @@ pub use error::{Error, Result};
 pub use eval::{evaluate, EvalConfig};
 /// The shared plain types (gait score, terrain kinds, preset files).
 pub use gaitsweep_model as model;
+pub use mirror::Mirror;
 pub use preset::{GridSpec, PpoConfig, Preset};
 pub use score::GaitScore;
 pub use terrain::TerrainKind;

@@ -31,6 +31,9 @@ pub struct Preset {
     pub feet: Vec<String>,
     /// Default joint pose (rad), in `joints` order.
     pub default_pose: Vec<f32>,
+    /// The left-right mirror of the joints (checked): entry k is the joint whose value the
+    /// mirrored robot's joint k takes and its sign. Empty when the preset names none.
+    pub mirror: Vec<(usize, f32)>,
     /// Standing base height (m).
     pub nominal_base_height: f32,
     /// Base height at spawn (m above the terrain).
@@ -106,6 +109,13 @@ impl Preset {
                 file.feet.len()
             ));
         }
+        let mirror = match crate::mirror::joint_map(&file.joints, &file.mirror) {
+            Ok(m) => m,
+            Err(e) => {
+                problems.push(e);
+                Vec::new()
+            }
+        };
         let c = &file.control;
         if !(c.sim_dt > 0.0 && c.sim_dt <= 0.02) {
             problems.push(format!(
@@ -184,6 +194,7 @@ impl Preset {
             joints: file.joints,
             feet: file.feet,
             default_pose: file.default_pose,
+            mirror,
             nominal_base_height: file.nominal_base_height,
             spawn_height: file.spawn_height,
             control: file.control,

@@ -239,6 +239,9 @@ pub fn epoch_metrics(s: &EpochStats, wall_seconds: f64) -> EpochMetrics {
     v.insert("entropy".into(), u.entropy);
     v.insert("kl".into(), u.kl);
     v.insert("learning_rate".into(), u.learning_rate);
+    if let Some(m) = u.mirror_loss {
+        v.insert("loss/mirror".into(), m);
+    }
     v.insert("grad_norm".into(), u.grad_norm);
     v.insert("action_std".into(), u.action_std);
     v.insert("samples_per_second".into(), s.samples_per_second());
@@ -339,6 +342,16 @@ pub fn train_cell_with(
         cfg.device,
         boundary_seed(cfg.seed, 0),
     );
+    if ppo.params.mirror_loss_coef > 0.0 {
+        let m = env.mirror()?.ok_or_else(|| {
+            Error::Config(format!(
+                "ppo.mirror_loss_coef = {} needs the preset's `mirror` joint map, which {} does \
+                 not name; add one (robots/anymal/preset.toml shows how) or set the coefficient to 0",
+                ppo.params.mirror_loss_coef, cfg.robot
+            ))
+        })?;
+        ppo.set_mirror(&m.obs, &m.act);
+    }
     let mut start = 0;
     let mut last_ckpt = None;
     let mut sim = SimEnv { env };

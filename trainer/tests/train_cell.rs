@@ -270,3 +270,40 @@ fn stairs_log_the_curriculum_of_top_and_pit_robots_apart() {
         "flat ground has no terrain variants to split"
     );
 }
+
+#[test]
+fn the_mirror_loss_makes_the_policy_symmetric_and_needs_a_mirror() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut c = cfg(&dir.path().join("mirror"), 12, None);
+    c.checkpoint_every = 100;
+    c.ppo_overrides.insert("mirror_loss_coef".into(), 10.0);
+    let mut obs = Collect::default();
+    train_cell(&c, &mut obs).unwrap();
+    let loss: Vec<f64> = obs.epochs.iter().map(|e| e.values["loss/mirror"]).collect();
+    assert!(loss.iter().all(|v| v.is_finite() && *v >= 0.0), "{loss:?}");
+    // Fresh networks are not symmetric; the loss pulls the action mean towards its mirror.
+    assert!(
+        loss[loss.len() - 1] < 0.5 * loss[0],
+        "the mirror loss did not fall by half over 12 epochs: {loss:?}"
+    );
+    // Off by default: no such metric.
+    let mut plain = Collect::default();
+    train_cell(&cfg(&dir.path().join("plain"), 1, None), &mut plain).unwrap();
+    assert!(!plain.epochs[0].values.contains_key("loss/mirror"));
+
+    // A preset without a mirror cannot have the loss.
+    let preset = dir.path().join("nomirror");
+    std::fs::create_dir_all(&preset).unwrap();
+    let anymal = gaitsweep_sim::model::preset::preset_dir("anymal").unwrap();
+    std::fs::write(
+        preset.join("preset.toml"),
+        format!("base = {:?}\nmirror = []\n", anymal.display().to_string()),
+    )
+    .unwrap();
+    c.robot = preset.display().to_string();
+    c.out_dir = dir.path().join("nomirror-run");
+    let e = train_cell(&c, &mut Collect::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("needs the preset's `mirror` joint map"), "{e}");
+}

@@ -32,6 +32,17 @@ pub struct UpdateStats {
     pub learning_rate: f64,
     /// Mean action standard deviation after the update.
     pub action_std: f64,
+    /// The symmetry mirror loss (before its coefficient), when it is on.
+    pub mirror_loss: Option<f64>,
+}
+
+/// The left-right mirror as index and sign tensors, for the symmetry loss.
+#[derive(Debug)]
+struct MirrorTensors {
+    obs_index: Tensor,
+    obs_sign: Tensor,
+    act_index: Tensor,
+    act_sign: Tensor,
 }
 
 /// Policy, value function, optimiser and observation normaliser of one cell.
@@ -50,6 +61,9 @@ pub struct Ppo {
     /// Whether the action std follows the noise schedule in the current epoch (set by
     /// [`Ppo::apply_noise_schedule`]); the update then leaves it alone.
     std_scheduled: bool,
+    /// The observation and action mirror of the symmetry loss (set with
+    /// [`Ppo::set_mirror`]; the loss is on when `params.mirror_loss_coef > 0`).
+    mirror: Option<MirrorTensors>,
 }
 
 impl Ppo {
@@ -86,7 +100,49 @@ impl Ppo {
             normalizer: ObsNormalizer::new(obs_dim),
             device,
             std_scheduled: false,
+            mirror: None,
         }
+    }
+
+    /// Sets the left-right mirror of observations and actions (`out[k] = sign * in[src]`
+    /// for each `(src, sign)`) that the symmetry loss compares the policy against.
+    pub fn set_mirror(&mut self, obs: &[(usize, f32)], act: &[(usize, f32)]) {
+        let split = |map: &[(usize, f32)]| {
+            let index: Vec<i64> = map.iter().map(|&(i, _)| i as i64).collect();
+            let sign: Vec<f32> = map.iter().map(|&(_, s)| s).collect();
+            (
+                Tensor::from_slice(&index).to_device(self.device),
+                Tensor::from_slice(&sign).to_device(self.device),
+            )
+        };
+        let ((obs_index, obs_sign), (act_index, act_sign)) = (split(obs), split(act));
+        self.mirror = Some(MirrorTensors {
+            obs_index,
+            obs_sign,
+            act_index,
+            act_sign,
+        });
+    }
+
+    /// rsl_rl's symmetry loss on normalised observations `obs` whose action means are
+    /// `mean`: the mean squared difference between the action mean of each mirrored
+    /// observation and the mirror of its action mean (held fixed). The mirror acts on raw
+    /// observations, so they are un-normalised and normalised again with `norm`.
+    fn mirror_loss(&self, obs: &Tensor, mean: &Tensor, norm: &(Tensor, Tensor)) -> Option<Tensor> {
+        let m = self.mirror.as_ref()?;
+        if self.params.mirror_loss_coef <= 0.0 {
+            return None;
+        }
+        let (nmean, denom) = norm;
+        let raw = obs * denom + nmean;
+        let mirrored = raw.index_select(1, &m.obs_index) * &m.obs_sign;
+        let x = ObsNormalizer::apply(&mirrored, nmean, denom);
+        let target = mean.detach().index_select(1, &m.act_index) * &m.act_sign;
+        Some(
+            (self.model.action_mean(&x) - target)
+                .square()
+                .mean(Kind::Float),
+        )
     }
 
     /// Deterministic actions (the means) for raw observations `[N * obs_dim]`, with the
@@ -184,6 +240,8 @@ impl Ppo {
         let mb = n / p.num_mini_batches as i64;
         let old_log_std = self.model.log_std.detach().copy();
         let old_var = (&old_log_std * 2.0).exp();
+        let norm = self.normalizer.tensors(self.device);
+        let mut mirror_sum = 0.0;
         let mut stats = UpdateStats::default();
         let mut updates = 0.0;
         for _ in 0..p.num_learning_epochs {
@@ -247,7 +305,12 @@ impl Ppo {
                     (&values - &returns).square().mean(Kind::Float)
                 };
 
-                let loss = &surrogate + &value_loss * p.value_loss_coef - &entropy * p.entropy_coef;
+                let mut loss =
+                    &surrogate + &value_loss * p.value_loss_coef - &entropy * p.entropy_coef;
+                if let Some(mirror) = self.mirror_loss(&obs, &mean, &norm) {
+                    mirror_sum += mirror.double_value(&[]);
+                    loss = loss + mirror * p.mirror_loss_coef;
+                }
                 let loss_v = loss.double_value(&[]);
                 if !loss_v.is_finite() {
                     let which = [
@@ -288,6 +351,9 @@ impl Ppo {
         stats.kl /= updates;
         stats.grad_norm /= updates;
         stats.learning_rate = self.optim.lr;
+        if self.mirror.is_some() && p.mirror_loss_coef > 0.0 {
+            stats.mirror_loss = Some(mirror_sum / updates);
+        }
         stats.action_std = self.model.log_std.exp().mean(Kind::Float).double_value(&[]);
         Ok(stats)
     }
