@@ -65,12 +65,13 @@ pub fn joint_map(joints: &[String], mirror: &[String]) -> std::result::Result<Si
 impl Mirror {
     /// The mirror of `preset`'s observations (as `preset.obs_dim()` lays them out: the 48
     /// proprioceptive values, then the height scan with `scan_y` inner) and actions. `None`
-    /// when the preset names no joint mirror; an error when the scan is not symmetric in y.
+    /// when the preset names no joint mirror; an error when its mirror is not one of its
+    /// joints (e.g. inherited from the preset it is based on) or the scan is not symmetric.
     pub fn for_preset(preset: &Preset) -> std::result::Result<Option<Mirror>, String> {
         if preset.mirror.is_empty() {
             return Ok(None);
         }
-        let joints = &preset.mirror;
+        let joints = joint_map(&preset.joints, &preset.mirror)?;
         let mut obs: SignedMap = Vec::with_capacity(preset.obs_dim());
         let vector = |obs: &mut SignedMap, at: usize, signs: [f32; 3]| {
             obs.extend(signs.iter().enumerate().map(|(i, &s)| (at + i, s)));
@@ -96,10 +97,7 @@ impl Mirror {
             obs.extend((0..ny).map(|j| (scan + i * ny + (ny - 1 - j), 1.0)));
         }
         debug_assert_eq!(obs.len(), preset.obs_dim());
-        Ok(Some(Mirror {
-            obs,
-            act: joints.clone(),
-        }))
+        Ok(Some(Mirror { obs, act: joints }))
     }
 
     /// Applies a map to one row.

@@ -31,9 +31,10 @@ pub struct Preset {
     pub feet: Vec<String>,
     /// Default joint pose (rad), in `joints` order.
     pub default_pose: Vec<f32>,
-    /// The left-right mirror of the joints (checked): entry k is the joint whose value the
-    /// mirrored robot's joint k takes and its sign. Empty when the preset names none.
-    pub mirror: Vec<(usize, f32)>,
+    /// The left-right mirror of the joints as written (`[-]JOINT` per joint, see
+    /// [`crate::mirror::joint_map`]); checked when the symmetry loss uses it, so that a
+    /// preset based on another robot's loads without restating it. Empty: none.
+    pub mirror: Vec<String>,
     /// Standing base height (m).
     pub nominal_base_height: f32,
     /// Base height at spawn (m above the terrain).
@@ -109,13 +110,6 @@ impl Preset {
                 file.feet.len()
             ));
         }
-        let mirror = match crate::mirror::joint_map(&file.joints, &file.mirror) {
-            Ok(m) => m,
-            Err(e) => {
-                problems.push(e);
-                Vec::new()
-            }
-        };
         let c = &file.control;
         if !(c.sim_dt > 0.0 && c.sim_dt <= 0.02) {
             problems.push(format!(
@@ -194,7 +188,7 @@ impl Preset {
             joints: file.joints,
             feet: file.feet,
             default_pose: file.default_pose,
-            mirror,
+            mirror: file.mirror,
             nominal_base_height: file.nominal_base_height,
             spawn_height: file.spawn_height,
             control: file.control,
