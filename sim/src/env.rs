@@ -87,9 +87,9 @@ fn mix(seed: u64, i: u64) -> u64 {
 
 /// Chebyshev distance (m) of (x, y) from the nearest sub-tile centre, for diagnostics.
 fn sub_tile_ring(x: f32, y: f32) -> f32 {
-    let half = crate::terrain::SUB_TILE / 2.0;
-    let c = |v: f32| ((v + half).rem_euclid(2.0 * half) - half).abs();
-    c(x).max(c(y))
+    crate::terrain::sub(x)
+        .abs()
+        .max(crate::terrain::sub(y).abs())
 }
 
 impl VecEnv {
@@ -515,6 +515,10 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         let od = env.obs_dim();
         let (mut scan_steps, mut unmirrored) = (0, 0.0f32);
+        let rms = |x: &[f32], y: &[f32]| {
+            let s: f32 = x.iter().zip(y).map(|(a, b)| (a - b) * (a - b)).sum();
+            (s / x.len() as f32).sqrt()
+        };
         for step in 0..15 {
             let a0: Vec<f32> = (0..NJ).map(|_| rng.random_range(-0.5..0.5)).collect();
             let mut actions = vec![0.0; 3 * NJ];
@@ -526,10 +530,6 @@ mod tests {
             // Rapier's solver is not exactly mirror-symmetric (constraint order), so the
             // two robots drift apart by a few percent; a wrong index or sign is off by the
             // size of the value itself, as the identity (no mirror) shows.
-            let rms = |x: &[f32], y: &[f32]| {
-                let s: f32 = x.iter().zip(y).map(|(a, b)| (a - b) * (a - b)).sum();
-                (s / x.len() as f32).sqrt()
-            };
             let got = &o[2 * od..];
             for (part, range) in [("proprioception", 0..48), ("height scan", 48..od)] {
                 let zero = vec![0.0; range.len()];

@@ -181,7 +181,7 @@ impl Tile {
 }
 
 /// Position inside the 8 m sub-tile, centred: in [-4, 4).
-fn sub(v: f32) -> f32 {
+pub(crate) fn sub(v: f32) -> f32 {
     (v + SUB_TILE / 2.0).rem_euclid(SUB_TILE) - SUB_TILE / 2.0
 }
 

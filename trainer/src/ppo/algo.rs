@@ -128,21 +128,16 @@ impl Ppo {
     /// `mean`: the mean squared difference between the action mean of each mirrored
     /// observation and the mirror of its action mean (held fixed). The mirror acts on raw
     /// observations, so they are un-normalised and normalised again with `norm`.
-    fn mirror_loss(&self, obs: &Tensor, mean: &Tensor, norm: &(Tensor, Tensor)) -> Option<Tensor> {
-        let m = self.mirror.as_ref()?;
-        if self.params.mirror_loss_coef <= 0.0 {
-            return None;
-        }
+    fn mirror_loss(&self, obs: &Tensor, mean: &Tensor, norm: &(Tensor, Tensor)) -> Tensor {
+        let m = self.mirror.as_ref().expect("called with a mirror set");
         let (nmean, denom) = norm;
         let raw = obs * denom + nmean;
         let mirrored = raw.index_select(1, &m.obs_index) * &m.obs_sign;
         let x = ObsNormalizer::apply(&mirrored, nmean, denom);
         let target = mean.detach().index_select(1, &m.act_index) * &m.act_sign;
-        Some(
-            (self.model.action_mean(&x) - target)
-                .square()
-                .mean(Kind::Float),
-        )
+        (self.model.action_mean(&x) - target)
+            .square()
+            .mean(Kind::Float)
     }
 
     /// Deterministic actions (the means) for raw observations `[N * obs_dim]`, with the
@@ -240,7 +235,9 @@ impl Ppo {
         let mb = n / p.num_mini_batches as i64;
         let old_log_std = self.model.log_std.detach().copy();
         let old_var = (&old_log_std * 2.0).exp();
-        let norm = self.normalizer.tensors(self.device);
+        // The symmetry loss's normalisation, when it is on (a mirror and a weight > 0).
+        let mirror_norm = (self.mirror.is_some() && p.mirror_loss_coef > 0.0)
+            .then(|| self.normalizer.tensors(self.device));
         let mut mirror_sum = 0.0;
         let mut stats = UpdateStats::default();
         let mut updates = 0.0;
@@ -307,7 +304,8 @@ impl Ppo {
 
                 let mut loss =
                     &surrogate + &value_loss * p.value_loss_coef - &entropy * p.entropy_coef;
-                if let Some(mirror) = self.mirror_loss(&obs, &mean, &norm) {
+                if let Some(norm) = &mirror_norm {
+                    let mirror = self.mirror_loss(&obs, &mean, norm);
                     mirror_sum += mirror.double_value(&[]);
                     loss = loss + mirror * p.mirror_loss_coef;
                 }
@@ -351,7 +349,7 @@ impl Ppo {
         stats.kl /= updates;
         stats.grad_norm /= updates;
         stats.learning_rate = self.optim.lr;
-        if self.mirror.is_some() && p.mirror_loss_coef > 0.0 {
+        if mirror_norm.is_some() {
             stats.mirror_loss = Some(mirror_sum / updates);
         }
         stats.action_std = self.model.log_std.exp().mean(Kind::Float).double_value(&[]);
