@@ -372,6 +372,11 @@ pub struct PpoConfig {
     /// the preset's `mirror` joint map.
     #[serde(default)]
     pub mirror_loss_coef: f64,
+    /// rsl_rl's symmetry data augmentation (off: rsl_rl's default): every sample of an
+    /// update also enters it left-right mirrored, observation and action, with the
+    /// original's advantage and old log-probability. Needs the preset's `mirror` joint map.
+    #[serde(default)]
+    pub mirror_augmentation: bool,
 }
 
 impl Default for PpoConfig {
@@ -398,6 +403,7 @@ impl Default for PpoConfig {
             noise_decay_epochs: 0,
             noise_decay_start: 0,
             mirror_loss_coef: 0.0,
+            mirror_augmentation: false,
         }
     }
 }
@@ -442,13 +448,14 @@ impl PpoConfig {
                 }
                 "mirror_loss_coef" if v >= 0.0 => self.mirror_loss_coef = v,
                 "mirror_loss_coef" => return Err(bad("expected a value >= 0")),
+                "mirror_augmentation" => self.mirror_augmentation = v != 0.0,
                 _ => {
                     return Err(bad(
                         "unknown hyperparameter; known: init_noise_std, clip_param, gamma, lam, \
                          value_loss_coef, entropy_coef, learning_rate, desired_kl, adaptive_lr, \
                          max_grad_norm, num_learning_epochs, num_mini_batches, steps_per_env, \
                          clip_value_loss, final_noise_std, noise_decay_epochs, noise_decay_start, \
-                         mirror_loss_coef",
+                         mirror_loss_coef, mirror_augmentation",
                     ))
                 }
             }
@@ -487,7 +494,8 @@ pub struct PresetFile {
     pub default_pose: Vec<f32>,
     /// The left-right mirror of the joints, in `joints` order: entry k names the joint whose
     /// value the mirrored robot's joint k takes, with a leading `-` where the sign flips
-    /// (hip abduction). Empty: no mirror (the symmetry loss is then unavailable).
+    /// (hip abduction). Empty: no mirror (the symmetry loss and the mirrored samples are then
+    /// unavailable).
     #[serde(default)]
     pub mirror: Vec<String>,
     /// Standing base height (m).

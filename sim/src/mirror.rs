@@ -1,4 +1,5 @@
-//! The left-right mirror of observations and actions, for rsl_rl's symmetry loss.
+//! The left-right mirror of observations and actions, for rsl_rl's symmetry loss and its
+//! mirrored samples (data augmentation).
 //!
 //! Mirroring the robot in its sagittal plane (base frame y -> -y) maps a state to the state
 //! of the mirrored robot: polar vectors (linear velocity, gravity) flip their y component,

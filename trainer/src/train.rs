@@ -342,12 +342,17 @@ pub fn train_cell_with(
         cfg.device,
         boundary_seed(cfg.seed, 0),
     );
-    if ppo.params.mirror_loss_coef > 0.0 {
+    if ppo.params.mirror_loss_coef > 0.0 || ppo.params.mirror_augmentation {
+        let on = if ppo.params.mirror_loss_coef > 0.0 {
+            format!("ppo.mirror_loss_coef = {}", ppo.params.mirror_loss_coef)
+        } else {
+            "ppo.mirror_augmentation".to_string()
+        };
         let m = env.mirror()?.ok_or_else(|| {
             Error::Config(format!(
-                "ppo.mirror_loss_coef = {} needs the preset's `mirror` joint map, which {} does \
-                 not name; add one (robots/anymal/preset.toml shows how) or set the coefficient to 0",
-                ppo.params.mirror_loss_coef, cfg.robot
+                "{on} needs the preset's `mirror` joint map, which {} does not name; add one \
+                 (robots/anymal/preset.toml shows how) or turn it off",
+                cfg.robot
             ))
         })?;
         ppo.set_mirror(&m.obs, &m.act);

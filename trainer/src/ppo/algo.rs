@@ -32,11 +32,13 @@ pub struct UpdateStats {
     pub learning_rate: f64,
     /// Mean action standard deviation after the update.
     pub action_std: f64,
-    /// The symmetry mirror loss (before its coefficient), when it is on.
+    /// The symmetry mirror loss (before its coefficient), when the loss or the mirrored
+    /// samples are on.
     pub mirror_loss: Option<f64>,
 }
 
-/// The left-right mirror as index and sign tensors, for the symmetry loss.
+/// The left-right mirror as index and sign tensors, for the symmetry loss and the
+/// mirrored samples.
 #[derive(Debug)]
 struct MirrorTensors {
     obs_index: Tensor,
@@ -61,8 +63,9 @@ pub struct Ppo {
     /// Whether the action std follows the noise schedule in the current epoch (set by
     /// [`Ppo::apply_noise_schedule`]); the update then leaves it alone.
     std_scheduled: bool,
-    /// The observation and action mirror of the symmetry loss (set with
-    /// [`Ppo::set_mirror`]; the loss is on when `params.mirror_loss_coef > 0`).
+    /// The observation and action mirror of the symmetry loss and the mirrored samples
+    /// (set with [`Ppo::set_mirror`]; on when `params.mirror_loss_coef > 0` or
+    /// `params.mirror_augmentation`).
     mirror: Option<MirrorTensors>,
 }
 
@@ -105,7 +108,8 @@ impl Ppo {
     }
 
     /// Sets the left-right mirror of observations and actions (`out[k] = sign * in[src]`
-    /// for each `(src, sign)`) that the symmetry loss compares the policy against.
+    /// for each `(src, sign)`) that the symmetry loss compares the policy against and the
+    /// mirrored samples are made with.
     pub fn set_mirror(&mut self, obs: &[(usize, f32)], act: &[(usize, f32)]) {
         let split = |map: &[(usize, f32)]| {
             let index: Vec<i64> = map.iter().map(|&(i, _)| i as i64).collect();
@@ -124,17 +128,31 @@ impl Ppo {
         });
     }
 
-    /// rsl_rl's symmetry loss on normalised observations `obs` whose action means are
-    /// `mean`: the mean squared difference between the action mean of each mirrored
-    /// observation and the mirror of its action mean (held fixed). The mirror acts on raw
-    /// observations, so they are un-normalised and normalised again with `norm`.
-    fn mirror_loss(&self, obs: &Tensor, mean: &Tensor, norm: &(Tensor, Tensor)) -> Tensor {
+    /// The left-right mirror of normalised observations `obs`: the mirror acts on raw
+    /// observations, so they are un-normalised and normalised again with `norm`. The rollout
+    /// normalised each step with the statistics of that moment and `norm` is the end's, so
+    /// the raw values are recovered to within one rollout's drift of the statistics (small
+    /// after the first epochs); storing raw observations would make it exact.
+    fn mirror_obs(&self, obs: &Tensor, norm: &(Tensor, Tensor)) -> Tensor {
         let m = self.mirror.as_ref().expect("called with a mirror set");
         let (nmean, denom) = norm;
         let raw = obs * denom + nmean;
         let mirrored = raw.index_select(1, &m.obs_index) * &m.obs_sign;
-        let x = ObsNormalizer::apply(&mirrored, nmean, denom);
-        let target = mean.detach().index_select(1, &m.act_index) * &m.act_sign;
+        ObsNormalizer::apply(&mirrored, nmean, denom)
+    }
+
+    /// The left-right mirror of actions (or action means) `act`.
+    fn mirror_act(&self, act: &Tensor) -> Tensor {
+        let m = self.mirror.as_ref().expect("called with a mirror set");
+        act.index_select(1, &m.act_index) * &m.act_sign
+    }
+
+    /// rsl_rl's symmetry loss on normalised observations `obs` whose action means are
+    /// `mean`: the mean squared difference between the action mean of each mirrored
+    /// observation and the mirror of its action mean (held fixed).
+    fn mirror_loss(&self, obs: &Tensor, mean: &Tensor, norm: &(Tensor, Tensor)) -> Tensor {
+        let x = self.mirror_obs(obs, norm);
+        let target = self.mirror_act(&mean.detach());
         (self.model.action_mean(&x) - target)
             .square()
             .mean(Kind::Float)
@@ -235,9 +253,11 @@ impl Ppo {
         let mb = n / p.num_mini_batches as i64;
         let old_log_std = self.model.log_std.detach().copy();
         let old_var = (&old_log_std * 2.0).exp();
-        // The symmetry loss's normalisation, when it is on (a mirror and a weight > 0).
-        let mirror_norm = (self.mirror.is_some() && p.mirror_loss_coef > 0.0)
-            .then(|| self.normalizer.tensors(self.device));
+        // The normalisation the mirror needs, when the symmetry loss (a weight > 0) or the
+        // mirrored samples are on.
+        let use_loss = self.mirror.is_some() && p.mirror_loss_coef > 0.0;
+        let augment = self.mirror.is_some() && p.mirror_augmentation;
+        let mirror_norm = (use_loss || augment).then(|| self.normalizer.tensors(self.device));
         let mut mirror_sum = 0.0;
         let mut stats = UpdateStats::default();
         let mut updates = 0.0;
@@ -259,17 +279,37 @@ impl Ppo {
                     pick(&batch.returns),
                     pick(&batch.advantages),
                 );
+                // rsl_rl's symmetry data augmentation: each sample also enters the update
+                // mirrored (observation and action), with the original's old log-probability,
+                // value, return and advantage, as if the acting policy had been symmetric.
+                let (obs, actions, old_logp, old_values, returns, adv) = match &mirror_norm {
+                    Some(norm) if augment => {
+                        let twice = |t: &Tensor| Tensor::cat(&[t, t], 0);
+                        (
+                            Tensor::cat(&[&obs, &self.mirror_obs(&obs, norm)], 0),
+                            Tensor::cat(&[&actions, &self.mirror_act(&actions)], 0),
+                            twice(&old_logp),
+                            twice(&old_values),
+                            twice(&returns),
+                            twice(&adv),
+                        )
+                    }
+                    _ => (obs, actions, old_logp, old_values, returns, adv),
+                };
 
                 let mean = self.model.action_mean(&obs);
                 let values = self.model.value(&obs);
                 let logp = self.model.log_prob(&mean, &actions);
                 let entropy = self.model.entropy();
 
+                // The KL and the symmetry loss read the collected samples only (the first
+                // `mb` rows when the batch is augmented), as rsl_rl does.
+                let own_mean = mean.narrow(0, 0, mb);
                 let kl = tch::no_grad(|| {
                     let log_std = &self.model.log_std;
                     let var = (log_std * 2.0).exp();
                     let per_dim = (log_std - &old_log_std)
-                        + (&old_var + (&old_mean - &mean).square()) / (var * 2.0)
+                        + (&old_var + (&old_mean - &own_mean).square()) / (var * 2.0)
                         - 0.5;
                     per_dim
                         .sum_dim_intlist(-1, false, Kind::Float)
@@ -305,9 +345,19 @@ impl Ppo {
                 let mut loss =
                     &surrogate + &value_loss * p.value_loss_coef - &entropy * p.entropy_coef;
                 if let Some(norm) = &mirror_norm {
-                    let mirror = self.mirror_loss(&obs, &mean, norm);
+                    // With mirrored samples the action means of the mirrored observations
+                    // are already the batch's second half.
+                    let mirror = if augment {
+                        (mean.narrow(0, mb, mb) - self.mirror_act(&own_mean.detach()))
+                            .square()
+                            .mean(Kind::Float)
+                    } else {
+                        self.mirror_loss(&obs, &mean, norm)
+                    };
                     mirror_sum += mirror.double_value(&[]);
-                    loss = loss + mirror * p.mirror_loss_coef;
+                    if use_loss {
+                        loss = loss + mirror * p.mirror_loss_coef;
+                    }
                 }
                 let loss_v = loss.double_value(&[]);
                 if !loss_v.is_finite() {
