@@ -32,8 +32,9 @@ pub struct Preset {
     /// Default joint pose (rad), in `joints` order.
     pub default_pose: Vec<f32>,
     /// The left-right mirror of the joints as written (`[-]JOINT` per joint, see
-    /// [`crate::mirror::joint_map`]); checked when the symmetry loss or the mirrored samples use it, so that a
-    /// preset based on another robot's loads without restating it. Empty: none.
+    /// [`crate::mirror::joint_map`]); checked when the symmetry loss or the mirrored
+    /// samples use it, so that a preset based on another robot's loads without restating
+    /// it. Empty: none.
     pub mirror: Vec<String>,
     /// Standing base height (m).
     pub nominal_base_height: f32,
