@@ -24,7 +24,7 @@ cargo build --release -p gaitsweep-sim --features bench --bin simbench >&2
 TMP="$(mktemp -d)"
 trap 'rm -rf "$TMP"' EXIT
 SIMBENCH=(target/release/simbench --json --robots anymal,heavy --terrains flat,rough,stairs
-          --threads 1,2 --steps "$STEPS" --no-legs --extra multibody:1:1)
+          --threads 1,2 --steps "$STEPS" --no-legs --parry-contacts --extra multibody:1:1)
 MUJOCO=("$PY" bench/mujoco_bench.py --json --robots anymal,heavy --terrains flat,rough,stairs
         --threads 1,2 --steps "$STEPS" --legs on,off)
 
@@ -54,7 +54,7 @@ rapier = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
 mujoco = [json.loads(l) for l in open(sys.argv[2]) if l.strip()]
 legs = lambda r: "no leg colliders" not in r["setting"]
 mj = {(r["robot"], r["terrain"], r["threads"], legs(r)): r for r in mujoco}
-order = {"preset": 0, "preset, no leg colliders": 1, "multibody:1:1": 2, "rapier default": 3,
+order = {"preset": 0, "preset, no leg colliders": 1, "preset, parry's capsule contacts": 1.5, "multibody:1:1": 2, "rapier default": 3,
          "multibody:4:1": 4, "mujoco": 9, "mujoco, no leg colliders": 10}
 rows = rapier + mujoco
 rows.sort(key=lambda r: (r["robot"], ["flat", "rough", "stairs"].index(r["terrain"]), order.get(r["setting"], 1), r["threads"]))
@@ -70,6 +70,8 @@ for r in rows:
     elif r["setting"].startswith("preset"):
         c = control(r["robot"])
         setting = f'preset: {c["joints"]}, {c["pgs_iterations"]} PGS' + ("" if legs(r) else ", no leg colliders")
+        if "parry" in r["setting"]:
+            setting += ", parry's per-triangle capsule contacts"
     elif r["setting"] == "rapier default":
         setting = "rapier's defaults: multibody, 1 PGS"
     else:
@@ -78,15 +80,18 @@ for r in rows:
     print(f'| {r["robot"]} | {r["terrain"]} | {setting} | {r["solver_iterations"]} | {r["threads"]} '
           f'| {r["robot_steps_per_s"]:,.0f} | {ref:,.0f} | {r["robot_steps_per_s"] / ref:.2f} |')
 print()
-print("Leg-collider cost: 1 - (robot-steps/s with thigh and shank colliders) / (without), same run.")
+print("Leg-collider cost: 1 - (robot-steps/s with thigh and shank colliders) / (without), same run:")
+print("the preset's closed-form capsule contacts, parry's per-triangle ones, MuJoCo's.")
 print()
-print("| robot | terrain | threads | rapier preset | MuJoCo |")
-print("|---|---|---:|---:|---:|")
+print("| robot | terrain | threads | rapier preset | rapier, parry's capsule contacts | MuJoCo |")
+print("|---|---|---:|---:|---:|---:|")
 by = {(r["robot"], r["terrain"], r["threads"], r["setting"]): r["robot_steps_per_s"] for r in rows}
 for (robot, terrain, th, setting), v in sorted(by.items()):
     if setting != "preset":
         continue
     cost = lambda on, off: f"{1 - on / off:.1%}" if on and off else "n/a"
-    print(f"| {robot} | {terrain} | {th} | {cost(v, by.get((robot, terrain, th, 'preset, no leg colliders')))} "
+    off = by.get((robot, terrain, th, 'preset, no leg colliders'))
+    parry = by.get((robot, terrain, th, "preset, parry's capsule contacts"))
+    print(f"| {robot} | {terrain} | {th} | {cost(v, off)} | {cost(parry, off)} "
           f"| {cost(by.get((robot, terrain, th, 'mujoco')), by.get((robot, terrain, th, 'mujoco, no leg colliders')))} |")
 EOF

@@ -53,6 +53,11 @@ pub struct ControlConfig {
     /// the base and the feet, for measuring what the leg contacts cost).
     #[serde(default = "yes")]
     pub leg_collisions: bool,
+    /// How capsules (legs, and a capsule base) touch a heightfield terrain:
+    /// `closed_form` (default: at most three contacts per capsule, `gaitsweep_sim::contact`)
+    /// or `parry` (parry's one manifold per triangle, the rule before 2026-12-02).
+    #[serde(default)]
+    pub capsule_contacts: CapsuleContacts,
     /// Episode length (s) during training.
     pub episode_seconds: f32,
 }
@@ -462,6 +467,17 @@ impl PpoConfig {
         }
         Ok(())
     }
+}
+
+/// How capsule colliders touch a heightfield terrain (see `ControlConfig::capsule_contacts`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CapsuleContacts {
+    /// The nearest surface point to each end cap and to the axis between them, in closed form.
+    #[default]
+    ClosedForm,
+    /// parry's generic rule: one manifold (GJK and feature clipping) per triangle touched.
+    Parry,
 }
 
 /// How the joints are simulated.

@@ -4,6 +4,7 @@
 //! This crate has no network and no libtorch: the trainer and the benchmarks drive it.
 
 pub mod agent;
+pub mod contact;
 pub mod env;
 pub mod error;
 pub mod eval;

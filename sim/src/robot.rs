@@ -3,6 +3,7 @@
 use std::sync::Arc;
 
 use rapier3d::math::{Pose, Rotation, Vector};
+use rapier3d::parry::query::{DefaultQueryDispatcher, QueryDispatcher};
 use rapier3d::prelude::*;
 
 use crate::preset::Preset;
@@ -58,7 +59,7 @@ pub struct RobotWorld {
     default_pose: Vec<f32>,
 }
 
-pub use gaitsweep_model::preset::JointBackend;
+pub use gaitsweep_model::preset::{CapsuleContacts, JointBackend};
 
 /// The rapier shape of a URDF primitive. Cylinders become capsules of the same radius and
 /// length when `capsules` is set (legged_gym's `replace_cylinder_with_capsule`): rapier's
@@ -82,6 +83,11 @@ impl RobotWorld {
     /// Builds the robot at its spawn pose on `tile`.
     pub fn new(preset: &Preset, model: &RobotModel, tile: Arc<Tile>) -> RobotWorld {
         let mut world = PhysicsWorld::new();
+        if preset.control.capsule_contacts == CapsuleContacts::ClosedForm {
+            world.narrow_phase = NarrowPhase::with_query_dispatcher(
+                crate::contact::CapsuleTerrainDispatcher.chain(DefaultQueryDispatcher),
+            );
+        }
         world.gravity = Vector::new(0.0, 0.0, -9.81);
         let ip = &mut world.integration_parameters;
         ip.dt = preset.control.sim_dt;

@@ -33,6 +33,9 @@ struct Args {
     /// Also run the preset without leg colliders (base and feet only).
     #[arg(long)]
     no_legs: bool,
+    /// Also run the preset with parry's per-triangle capsule-terrain contacts.
+    #[arg(long)]
+    parry_contacts: bool,
     /// Extra settings to compare: backend:iterations:pgs, e.g. impulse:1:4.
     #[arg(long, value_delimiter = ',', value_parser = parse_setting)]
     extra: Vec<(String, gaitsweep_sim::robot::JointBackend, usize, usize)>,
@@ -115,6 +118,12 @@ fn main() -> Result<()> {
             let mut d = preset.clone();
             d.control.leg_collisions = false;
             settings.push(("preset, no leg colliders", d));
+        }
+        if a.parry_contacts {
+            // The contacts the leg capsules had before the closed-form ones, for comparison.
+            let mut d = preset.clone();
+            d.control.capsule_contacts = gaitsweep_sim::robot::CapsuleContacts::Parry;
+            settings.push(("preset, parry's capsule contacts", d));
         }
         for (label, backend, iters, pgs) in &a.extra {
             let mut d = preset.clone();
