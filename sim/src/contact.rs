@@ -17,13 +17,17 @@
 //! the normal of the triangle above it, by its depth below that triangle's plane.
 
 use rapier3d::parry::math::{Pose, Real, Vector};
+use rapier3d::parry::query::closest_points::closest_points_segment_segment_with_locations_nD;
 use rapier3d::parry::query::details::NormalConstraints;
+use rapier3d::parry::query::PointQuery;
 use rapier3d::parry::query::{
     ClosestPoints, Contact, ContactManifold, ContactManifoldsWorkspace, NonlinearRigidMotion,
     PersistentQueryDispatcher, QueryDispatcher, ShapeCastHit, ShapeCastOptions, ShapeDistance,
     ShapeIntersection, TrackedContact, TypedWorkspaceData, Unsupported, WorkspaceData,
 };
-use rapier3d::parry::shape::{Capsule, HeightField, PackedFeatureId, Shape, Triangle};
+use rapier3d::parry::shape::{
+    Capsule, HeightField, PackedFeatureId, SegmentPointLocation, Shape, Triangle,
+};
 
 /// Answers capsule-heightfield contact manifolds in closed form, nothing else (chain it
 /// before parry's `DefaultQueryDispatcher`).
@@ -50,94 +54,27 @@ fn up_normal(t: &Triangle) -> Option<Vector> {
     Some(if n.y < 0.0 { -n } else { n })
 }
 
-/// Closest point of triangle `t` to `p` (Ericson 5.1.5, by Voronoi regions).
+/// Closest point of triangle `t` to `p` (parry's projection, Ericson 5.1.5).
 fn closest_on_triangle(p: Vector, t: &Triangle) -> Vector {
-    let (a, b, c) = (t.a, t.b, t.c);
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = ab.dot(ap);
-    let d2 = ac.dot(ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
-    }
-    let bp = p - b;
-    let d3 = ab.dot(bp);
-    let d4 = ac.dot(bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let d5 = ab.dot(cp);
-    let d6 = ac.dot(cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    a + ab * (vb * denom) + ac * (vc * denom)
+    t.project_local_point(p, true).point
 }
 
-/// Closest points of segments `p1 q1` and `p2 q2` (Ericson 5.1.9): the parameter along
-/// the first and both points.
+/// Closest points of segments `p1 q1` and `p2 q2` (parry's, Ericson 5.1.9): the parameter
+/// along the first and both points.
 fn closest_segment_segment(
     p1: Vector,
     q1: Vector,
     p2: Vector,
     q2: Vector,
 ) -> (Real, Vector, Vector) {
-    const EPS: Real = 1.0e-12;
-    let d1 = q1 - p1;
-    let d2 = q2 - p2;
-    let r = p1 - p2;
-    let a = d1.dot(d1);
-    let e = d2.dot(d2);
-    let f = d2.dot(r);
-    let (s, t);
-    if a <= EPS && e <= EPS {
-        return (0.0, p1, p2);
-    }
-    if a <= EPS {
-        s = 0.0;
-        t = (f / e).clamp(0.0, 1.0);
-    } else {
-        let c = d1.dot(r);
-        if e <= EPS {
-            t = 0.0;
-            s = (-c / a).clamp(0.0, 1.0);
-        } else {
-            let b = d1.dot(d2);
-            let denom = a * e - b * b;
-            let s0 = if denom > EPS * a * e {
-                ((b * f - c * e) / denom).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            let t0 = (b * s0 + f) / e;
-            if t0 < 0.0 {
-                t = 0.0;
-                s = (-c / a).clamp(0.0, 1.0);
-            } else if t0 > 1.0 {
-                t = 1.0;
-                s = ((b - c) / a).clamp(0.0, 1.0);
-            } else {
-                t = t0;
-                s = s0;
-            }
-        }
-    }
-    (s, p1 + d1 * s, p2 + d2 * t)
+    let (l1, l2) = closest_points_segment_segment_with_locations_nD((&p1, &q1), (&p2, &q2));
+    let param = |l: SegmentPointLocation| match l {
+        SegmentPointLocation::OnVertex(0) => 0.0,
+        SegmentPointLocation::OnVertex(_) => 1.0,
+        SegmentPointLocation::OnEdge([_, s]) => s,
+    };
+    let (s, t) = (param(l1), param(l2));
+    (s, p1 + (q1 - p1) * s, p2 + (q2 - p2) * t)
 }
 
 /// `p`'s signed distance to the plane of the heightfield triangle under its vertical, and
@@ -233,9 +170,9 @@ fn may_lie_over(lo1: Vector, hi1: Vector, lo2: Vector, hi2: Vector) -> bool {
 }
 
 /// How far edge `e0 e1` lies above axis `a b` where their horizontal (x, z) shadows cross,
-/// measured between the two segments (their closest points); `None` where the shadows do
-/// not cross or the edge passes below.
-fn under_edge(a: Vector, b: Vector, e0: Vector, e1: Vector) -> Option<Real> {
+/// measured between the two segments, with their closest points (on the axis, on the
+/// edge); `None` where the shadows do not cross or the edge passes below.
+fn under_edge(a: Vector, b: Vector, e0: Vector, e1: Vector) -> Option<(Real, Vector, Vector)> {
     let (dx, dz) = (b.x - a.x, b.z - a.z);
     let (ex, ez) = (e1.x - e0.x, e1.z - e0.z);
     let det = dx * ez - dz * ex;
@@ -256,7 +193,7 @@ fn under_edge(a: Vector, b: Vector, e0: Vector, e1: Vector) -> Option<Real> {
         return None;
     }
     let (_, on_axis, on_edge) = closest_segment_segment(a, b, e0, e1);
-    Some(on_axis.distance(on_edge))
+    Some((on_axis.distance(on_edge), on_axis, on_edge))
 }
 
 /// Squared distance between the boxes `[lo1, hi1]` and `[lo2, hi2]`: a lower bound on the
@@ -270,8 +207,9 @@ fn box_gap_sq(lo1: Vector, hi1: Vector, lo2: Vector, hi2: Vector) -> Real {
 
 /// Up to three contacts of a capsule (axis `a b`, radius `r`, in the heightfield's frame)
 /// with the heightfield: one per end cap and one for the axis between them, each only
-/// when its gap is below `prediction` (`had_axis`: the axis had a contact last step). `None` for a heightfield with removed or zigzag
-/// cells under the capsule (parry's own rule handles those).
+/// when its gap is below `prediction` (`had_axis`: the axis had a contact last step).
+/// `None` for a heightfield with removed or zigzag cells under the capsule (parry's own
+/// rule handles those).
 fn capsule_heightfield_probes(
     hf: &HeightField,
     a: Vector,
@@ -337,9 +275,10 @@ fn capsule_heightfield_probes(
             }
             // parry's split of a cell without flags: (p00, p10, p01) and (p10, p11, p01).
             let tris = [Triangle::new(p00, p10, p01), Triangle::new(p10, p11, p01)];
+            let (n1, n2) = (up_normal(&tris[0]), up_normal(&tris[1]));
             let mut face = Vector::Y;
-            for t in &tris {
-                let Some(n) = up_normal(t) else { continue };
+            for (t, n) in tris.iter().zip([n1, n2]) {
+                let Some(n) = n else { continue };
                 face = n;
                 if near_a {
                     ends[0].offer(a, closest_on_triangle(a, t), n);
@@ -364,15 +303,13 @@ fn capsule_heightfield_probes(
                 (i <= nrows && j <= ncols)
                     .then(|| Vector::new(hf.x_at(j), heights[(i, j)] * sy, hf.z_at(i)))
             };
-            let (n1, n2) = (up_normal(&tris[0]), up_normal(&tris[1]));
             let mut edge =
                 |e0: Vector, e1: Vector, plane: Option<Vector>, opposite: Option<Vector>| {
                     let (elo, ehi) = (e0.min(e1), e0.max(e1));
                     if may_lie_over(lo, hi, elo, ehi) {
-                        if let Some(depth) = under_edge(a, b, e0, e1) {
-                            if depth > crest.0 {
-                                let (_, on_axis, on_edge) = closest_segment_segment(a, b, e0, e1);
-                                crest = (depth, on_axis, on_edge);
+                        if let Some(under) = under_edge(a, b, e0, e1) {
+                            if under.0 > crest.0 {
+                                crest = under;
                             }
                             return;
                         }
@@ -709,7 +646,7 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
     use rapier3d::parry::bounding_volume::{Aabb, BoundingVolume};
-    use rapier3d::parry::query::{self, PointQuery};
+    use rapier3d::parry::query;
     use rapier3d::parry::utils::Array2;
 
     /// A 2 m x 2 m heightfield of `n` x `n` cells, heights from `h(x, z)`.
