@@ -281,6 +281,26 @@ impl ResetConfig {
     }
 }
 
+/// legged_gym's terrain curriculum (rough ground and stairs; the evaluation runs at a fixed
+/// level and does not use it).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct CurriculumConfig {
+    /// A robot that walks out of the last level goes to a level drawn uniformly from all of
+    /// them, as legged_gym's `_update_terrain_curriculum` sends "robots that solve the last
+    /// level" to "a random one"; `false` keeps it on the last level, so that the robots pile
+    /// up there (this project's rule up to session 21).
+    pub random_after_last: bool,
+}
+
+impl Default for CurriculumConfig {
+    fn default() -> Self {
+        CurriculumConfig {
+            random_after_last: true,
+        }
+    }
+}
+
 /// One axis of a grid: `count` values evenly spaced from `min` to `max`.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -536,6 +556,9 @@ pub struct PresetFile {
     /// How episodes start (default: at the default pose, at rest).
     #[serde(default)]
     pub reset: ResetConfig,
+    /// The terrain curriculum (default: legged_gym's).
+    #[serde(default)]
+    pub curriculum: CurriculumConfig,
     /// Settings that differ by terrain (`[terrain.rough.ppo]`, `[terrain.rough.domain_rand]`,
     /// `[terrain.stairs.reward]`): laid over `ppo`, `domain_rand` and `reward` for a cell on
     /// that terrain (a spec's own `ppo` overrides go over them).

@@ -344,7 +344,15 @@ impl VecEnv {
                             // legged_gym demotes on the command times the full episode length;
                             // a staggered first episode is shorter, so use the time it lasted.
                             let commanded = a.cmd.speed * a.episode_seconds(p);
-                            a.level = curriculum_update(a.level, a.walked(), commanded);
+                            let (level, walked) = (a.level, a.walked());
+                            let rng = &mut a.rng;
+                            a.level = curriculum_update(level, walked, commanded, || {
+                                if p.curriculum.random_after_last {
+                                    rand::Rng::random_range(rng, 0..crate::terrain::LEVELS)
+                                } else {
+                                    level
+                                }
+                            });
                         }
                         a.reset(p, terrain.tile(a.level, i).clone());
                     } else {

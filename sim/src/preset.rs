@@ -9,9 +9,9 @@ use crate::error::{Error, Result};
 
 use crate::terrain::TerrainKind;
 pub use gaitsweep_model::preset::{
-    available, preset_dir, robots_dir, AxisSpec, CommandConfig, ControlConfig, DomainRandConfig,
-    GridSpec, JointBackend, ObservationConfig, PpoConfig, PresetFile, ResetConfig, RewardConfig,
-    TerrainOverrides, TerrainSettings,
+    available, preset_dir, robots_dir, AxisSpec, CommandConfig, ControlConfig, CurriculumConfig,
+    DomainRandConfig, GridSpec, JointBackend, ObservationConfig, PpoConfig, PresetFile,
+    ResetConfig, RewardConfig, TerrainOverrides, TerrainSettings,
 };
 
 /// A robot preset: its URDF, control, observation, reward and grid settings.
@@ -57,6 +57,8 @@ pub struct Preset {
     pub domain_rand: DomainRandConfig,
     /// Randomized episode starts.
     pub reset: ResetConfig,
+    /// The terrain curriculum.
+    pub curriculum: CurriculumConfig,
     /// What differs by terrain (`[terrain.<kind>.ppo]`, `[terrain.<kind>.domain_rand]`).
     pub terrain: BTreeMap<TerrainKind, TerrainOverrides>,
     /// sha256 of the preset file and the URDF: checkpoints record it.
@@ -200,6 +202,7 @@ impl Preset {
             ppo: file.ppo,
             domain_rand: file.domain_rand,
             reset: file.reset,
+            curriculum: file.curriculum,
             terrain: file.terrain,
             digest,
         })

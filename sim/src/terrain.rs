@@ -58,10 +58,20 @@ impl LevelParams {
 }
 
 /// legged_gym's curriculum: move up a level after walking farther than half a sub-tile,
-/// down after covering less than half the commanded distance; stay within 0..LEVELS.
-pub fn curriculum_update(level: u8, walked: f32, commanded: f32) -> u8 {
+/// down after covering less than half the commanded distance; stay within 0..LEVELS. A
+/// robot that walks out of the last level goes to `after_last()` (legged_gym: a random level).
+pub fn curriculum_update(
+    level: u8,
+    walked: f32,
+    commanded: f32,
+    after_last: impl FnOnce() -> u8,
+) -> u8 {
     if walked > SUB_TILE / 2.0 {
-        (level + 1).min(LEVELS - 1)
+        if level + 1 >= LEVELS {
+            after_last().min(LEVELS - 1)
+        } else {
+            level + 1
+        }
     } else if walked < commanded * 0.5 {
         level.saturating_sub(1)
     } else {
@@ -281,11 +291,22 @@ mod tests {
 
     #[test]
     fn curriculum_moves_up_down_and_stays_in_range() {
-        assert_eq!(curriculum_update(3, 4.5, 10.0), 4);
-        assert_eq!(curriculum_update(3, 2.0, 10.0), 2);
-        assert_eq!(curriculum_update(3, 3.0, 5.0), 3);
-        assert_eq!(curriculum_update(0, 0.0, 10.0), 0);
-        assert_eq!(curriculum_update(LEVELS - 1, 9.0, 1.0), LEVELS - 1);
+        let never = || -> u8 { unreachable!("only past the last level") };
+        assert_eq!(curriculum_update(3, 4.5, 10.0, never), 4);
+        assert_eq!(curriculum_update(3, 2.0, 10.0, never), 2);
+        assert_eq!(curriculum_update(3, 3.0, 5.0, never), 3);
+        assert_eq!(curriculum_update(0, 0.0, 10.0, never), 0);
+        assert_eq!(curriculum_update(LEVELS - 2, 9.0, 1.0, never), LEVELS - 1);
+        // Walking out of the last level: wherever `after_last` says, within range.
+        assert_eq!(curriculum_update(LEVELS - 1, 9.0, 1.0, || 3), 3);
+        assert_eq!(
+            curriculum_update(LEVELS - 1, 9.0, 1.0, || LEVELS - 1),
+            LEVELS - 1
+        );
+        assert_eq!(curriculum_update(LEVELS - 1, 9.0, 1.0, || 200), LEVELS - 1);
+        // Not walking out of it: stays, or moves down.
+        assert_eq!(curriculum_update(LEVELS - 1, 3.0, 5.0, never), LEVELS - 1);
+        assert_eq!(curriculum_update(LEVELS - 1, 0.0, 5.0, never), LEVELS - 2);
     }
 
     #[test]
