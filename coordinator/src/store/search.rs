@@ -198,6 +198,9 @@ pub(super) async fn apply_asha(
 
 /// Stores an intermediate evaluation a worker logged as the metrics `eval/*` at `epoch`
 /// (a spec's `eval.every`) in `evaluations`; a rung's evaluation at the same epoch wins.
+/// A later attempt's evaluation replaces an earlier attempt's, as its metrics do in
+/// `epoch_metrics`: a cell resumed from a checkpoint before that epoch trains it again, and
+/// its curve must be the run that goes on, not the one that was cut off.
 pub(super) async fn record_periodic_eval(
     tx: &mut Tx,
     cell: CellId,
@@ -211,7 +214,11 @@ pub(super) async fn record_periodic_eval(
     sqlx::query(
         "INSERT INTO evaluations (cell_id, epoch, kind, attempt_id, score, track, effort, tilt, progress, \
          fall_rate, mean_vel_error, robots, reported_unix_ms) VALUES ($1, $2, 'periodic', $3, $4, $5, $6, $7, $8, $9, $10, $11, \
-         $12) ON CONFLICT (cell_id, epoch) DO NOTHING",
+         $12) ON CONFLICT (cell_id, epoch) DO UPDATE SET attempt_id = excluded.attempt_id, \
+         score = excluded.score, track = excluded.track, effort = excluded.effort, tilt = excluded.tilt, \
+         progress = excluded.progress, fall_rate = excluded.fall_rate, mean_vel_error = excluded.mean_vel_error, \
+         robots = excluded.robots, reported_unix_ms = excluded.reported_unix_ms \
+         WHERE evaluations.kind = 'periodic' AND evaluations.attempt_id <= excluded.attempt_id",
     )
     .bind(cell.0)
     .bind(i64::from(epoch))

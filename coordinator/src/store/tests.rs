@@ -202,6 +202,70 @@ async fn resume_points_at_the_latest_checkpoint_and_cancel_stops_all() {
     ));
 }
 
+/// A cell retried after its attempt failed trains the epochs after its checkpoint again: its
+/// periodic evaluation there replaces the failed attempt's (as the metrics do), and a late
+/// report of the failed attempt cannot bring the old one back.
+async fn a_retried_attempt_replaces_its_periodic_evaluations() {
+    let (_d, store, w) = setup().await;
+    let mut s = spec(1, 1, vec![TerrainKind::Flat]);
+    s.eval_every = 1;
+    store.create_sweep(&s, 0).await.unwrap();
+    let eval = |score: f64| -> BTreeMap<String, f64> {
+        [
+            ("mean_return", 1.0),
+            ("eval/score", score),
+            ("eval/fall_rate", 0.5),
+        ]
+        .into_iter()
+        .map(|(n, v)| (n.to_string(), v))
+        .collect()
+    };
+    let g = store.lease_next(&w, 0, 1).await.unwrap().unwrap();
+    store
+        .record_progress(g.lease, &[(1, eval(0.2)), (2, eval(0.3))])
+        .await
+        .unwrap();
+    store
+        .end_attempt(g.lease, AttemptEnd::Failed, "killed", 3, 2)
+        .await
+        .unwrap();
+    let g2 = store.lease_next(&w, 0, 3).await.unwrap().unwrap();
+    assert_eq!(g2.cell.id, g.cell.id);
+    store
+        .record_progress(g2.lease, &[(2, eval(0.7))])
+        .await
+        .unwrap();
+    let rows: Vec<(i64, f64, i64)> = sqlx::query_as(
+        "SELECT epoch, score, attempt_id FROM evaluations WHERE cell_id = $1 ORDER BY epoch",
+    )
+    .bind(g.cell.id.0)
+    .fetch_all(store.reader())
+    .await
+    .unwrap();
+    assert_eq!(
+        rows,
+        vec![(1, 0.2, g.lease.0), (2, 0.7, g2.lease.0)],
+        "epoch 1 from the first attempt, epoch 2 from the retry"
+    );
+    let metric: f64 = sqlx::query_scalar(
+        "SELECT value FROM epoch_metrics WHERE cell_id = $1 AND epoch = 2 AND name = 'eval/score'",
+    )
+    .bind(g.cell.id.0)
+    .fetch_one(store.reader())
+    .await
+    .unwrap();
+    assert_eq!(metric, 0.7, "the metric and the evaluation agree");
+    // Refused or not, a report of the ended attempt leaves the retry's evaluation standing.
+    let _ = store.record_progress(g.lease, &[(2, eval(0.1))]).await;
+    let kept: f64 =
+        sqlx::query_scalar("SELECT score FROM evaluations WHERE cell_id = $1 AND epoch = 2")
+            .bind(g.cell.id.0)
+            .fetch_one(store.reader())
+            .await
+            .unwrap();
+    assert_eq!(kept, 0.7);
+}
+
 /// A full disk (here: SQLite's page limit) fails the writes that meet it; once space is
 /// back, writes succeed again without a restart.
 #[tokio::test]
@@ -909,6 +973,7 @@ conformance!(
     expired_cells_are_retried_then_failed,
     results_are_idempotent_and_promote_the_best,
     resume_points_at_the_latest_checkpoint_and_cancel_stops_all,
+    a_retried_attempt_replaces_its_periodic_evaluations,
     a_failed_cell_stays_failed,
     released_attempts_requeue_at_once_and_do_not_count,
     reports_outside_the_cell_are_refused_and_change_nothing,
