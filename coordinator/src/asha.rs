@@ -69,6 +69,13 @@ pub fn quota(reached: usize, reduction: u32, closed: bool) -> usize {
     }
 }
 
+/// Whether none of `cells` is training (queued or running). A synchronous bracket (a
+/// generation of the evolutionary search) is decided only then: every cell has reached its
+/// rung or ended, so [`decide`] continues exactly the top `max(1, floor(n / reduction))`.
+pub fn no_cell_training(cells: &[AshaCell]) -> bool {
+    cells.iter().all(|c| c.standing != Standing::Training)
+}
+
 /// The decisions due now for the paused cells of a sweep with `rungs` rungs (the last is
 /// the full budget, where cells finish instead of pausing) and reduction factor
 /// `reduction`. Each paused cell gets at most one decision; a cell not decided stays
@@ -202,6 +209,18 @@ mod tests {
         reduction: u32,
         order: &[usize],
     ) -> (Vec<AshaCell>, Vec<Logged>) {
+        play_as(scores, rungs, reduction, order, false)
+    }
+
+    /// [`play`], with `synchronous` deciding only while no cell trains (an evolutionary
+    /// search's generation).
+    fn play_as(
+        scores: &[Vec<f64>],
+        rungs: usize,
+        reduction: u32,
+        order: &[usize],
+        synchronous: bool,
+    ) -> (Vec<AshaCell>, Vec<Logged>) {
         let mut cells: Vec<AshaCell> = (0..scores.len())
             .map(|i| cell(i as i64, &[], Standing::Training))
             .collect();
@@ -222,7 +241,12 @@ mod tests {
             } else {
                 Standing::Paused
             };
-            for d in decide(&cells, rungs, reduction) {
+            let due = if synchronous && !no_cell_training(&cells) {
+                vec![]
+            } else {
+                decide(&cells, rungs, reduction)
+            };
+            for d in due {
                 let mut reached: Vec<(CellId, f64)> = cells
                     .iter()
                     .filter(|c| c.scores.len() > d.rung)
@@ -279,6 +303,34 @@ mod tests {
                     (CellId(b as i64), scores[b][0]), (CellId(a as i64), scores[a][0]))).unwrap();
                 prop_assert!(cells[best].scores.len() > 1);
             }
+        }
+
+        #[test]
+        fn a_synchronous_bracket_keeps_exactly_its_top_at_every_rung_whatever_the_order(
+            n in 1usize..16,
+            rungs in 1usize..5,
+            reduction in 2u32..5,
+            raw in proptest::collection::vec(-1.0f64..1.0, 80),
+            order in proptest::collection::vec(0usize..100, 1..40),
+        ) {
+            let scores: Vec<Vec<f64>> = (0..n)
+                .map(|i| (0..rungs).map(|k| raw[(i * 5 + k) % raw.len()]).collect())
+                .collect();
+            let (cells, _) = play_as(&scores, rungs, reduction, &order, true);
+            prop_assert!(cells.iter().all(|c| c.standing == Standing::Closed));
+            // n cells reach rung 0, then max(1, floor(n_k / eta)) each next rung: what
+            // `halving_cost` budgets a generation at.
+            let mut alive = n;
+            for k in 0..rungs {
+                prop_assert_eq!(cells.iter().filter(|c| c.scores.len() > k).count(), alive);
+                alive = (alive / reduction as usize).max(1);
+            }
+            // The arrival order changes nothing.
+            let (again, _) = play_as(&scores, rungs, reduction, &[0], true);
+            prop_assert_eq!(
+                cells.iter().map(|c| c.scores.len()).collect::<Vec<_>>(),
+                again.iter().map(|c| c.scores.len()).collect::<Vec<_>>()
+            );
         }
 
         #[test]

@@ -10,15 +10,23 @@
 //!   replicate drawn per point; the best drawn score is the answer. What a single-seed
 //!   grid finds on this data, the bar a search with one run per candidate can reach.
 //! - **ASHA**: every replay draws one recorded replicate per point (the noise a single run
-//!   has), puts the points in a random order and runs them on `workers` simulated workers
-//!   with [`crate::asha::decide`], the function the coordinator uses; a cell's rung score is
-//!   its replicate's evaluation at the rung epoch. The answer is the best final score among
-//!   the cells trained to the end.
+//!   has) and runs the points as cells in a random order (the coordinator creates a halving
+//!   sweep's cells in a seeded random order) on `workers` simulated workers that lease the
+//!   lowest queued cell first, as the coordinator does (so a continued cell goes before the
+//!   cells still waiting for their first rung), with [`crate::asha::decide`], the function
+//!   the coordinator uses; workers' speeds are jittered so that arrivals interleave. A cell's rung score
+//!   is its replicate's evaluation at the rung epoch. The answer is the best final score
+//!   among the cells trained to the end.
 //! - **CMA-ES**: [`crate::evolution::next_step`] over the axes' rectangle with the replay's
-//!   seed; a candidate between grid points is scored by interpolating, bilinearly in
-//!   (w1, w2) between the four surrounding points, one randomly drawn replicate's final
-//!   score of each (a fresh draw per candidate). Its answer is the candidate with the best
-//!   observed score; its true value is the same interpolation of the point means.
+//!   seed and the coordinator's generation count for the budget. A candidate's run is the
+//!   surface of point means, interpolated bilinearly in (w1, w2) between the four
+//!   surrounding grid points, plus one run's noise: the deviation of a replicate drawn at
+//!   the nearest grid point from that point's mean (a fresh draw per candidate; at a grid
+//!   point this is exactly the drawn replicate). With halving, each generation's candidates
+//!   are halved synchronously among themselves on the simulated workers, as the
+//!   coordinator does, and ranked by how far they got, then by their score there; the
+//!   epochs counted are those trained. Its answer is the candidate trained to the end with
+//!   the best observed score; its true value is the interpolation of the point means.
 //!
 //! A replay *finds the best* when its answer's nearest grid point is the grid's best point,
 //! and is *within 5%* when the answer's true value is at least the best mean minus 5% of
@@ -31,7 +39,7 @@ use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::{BTreeMap, BTreeSet};
 
 /// One recorded training run (a replicate of a grid point).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -238,48 +246,38 @@ pub fn asha_rungs(rec: &Recording, s: &AshaSetup) -> Result<Vec<u32>, String> {
     Ok(rungs)
 }
 
-/// One ASHA replay with `seed`.
-pub fn replay_asha(rec: &Recording, s: &AshaSetup, seed: u64) -> Result<Replay, String> {
-    let rungs = asha_rungs(rec, s)?;
-    let mut rng = StdRng::seed_from_u64(seed);
-    struct Sim<'a> {
-        point: (usize, usize),
-        run: &'a RecordedRun,
-        trained: u32,
-        target_rung: usize,
-        scores: Vec<f64>,
-        standing: Standing,
-    }
-    let mut cells: Vec<Sim> = Vec::new();
-    for i in 0..rec.w1_values.len() {
-        for j in 0..rec.w2_values.len() {
-            let p = rec.point(i, j).ok_or("unvalidated recording")?;
-            let run = &p.runs[rng.random_range(0..p.runs.len())];
-            cells.push(Sim {
-                point: (i, j),
-                run,
-                trained: 0,
-                target_rung: 0,
-                scores: vec![],
-                standing: Standing::Training,
-            });
-        }
-    }
-    let mut queue: VecDeque<usize> = {
-        let mut order: Vec<usize> = (0..cells.len()).collect();
-        order.shuffle(&mut rng);
-        order.into()
-    };
-    // (finish time, cell) per busy worker; workers run at the same speed, with a random
-    // jitter so that arrivals interleave as on a real cluster.
+/// Asynchronous successive halving of `values.len()` cells as the coordinator runs it:
+/// `workers` simulated workers (one cell each, the same speed with a random jitter so that
+/// arrivals interleave as on a real cluster) lease the queued cell with the lowest index
+/// first (the coordinator leases the lowest cell id, so a continued cell goes before the
+/// cells still waiting for their first rung), and [`crate::asha::decide`] continues or stops
+/// each cell at each rung. `values[c][k]` is cell `c`'s score at `rungs[k]` (the last one
+/// its final score). With `synchronous` a rung is decided only while no cell trains, as
+/// the coordinator does inside an evolutionary search's generation. Returns the index of
+/// the deepest rung each cell trained to and the epochs trained.
+fn simulate_halving(
+    values: &[Vec<f64>],
+    rungs: &[u32],
+    reduction: u32,
+    workers: usize,
+    synchronous: bool,
+    rng: &mut StdRng,
+) -> (Vec<usize>, u64) {
+    let last = rungs.len() - 1;
+    let n = values.len();
+    let mut target = vec![0usize; n];
+    let mut trained = vec![0u32; n];
+    let mut depth = vec![0usize; n];
+    let mut scores: Vec<Vec<f64>> = vec![vec![]; n];
+    let mut standing = vec![Standing::Training; n];
+    let mut queue: BTreeSet<usize> = (0..n).collect();
     let mut busy: Vec<(f64, usize)> = Vec::new();
     let mut now = 0.0;
-    let mut epochs_used = 0u64;
+    let mut epochs = 0u64;
     loop {
-        while busy.len() < s.workers.max(1) {
-            let Some(c) = queue.pop_front() else { break };
-            let target = rungs[cells[c].target_rung];
-            let work = f64::from(target - cells[c].trained);
+        while busy.len() < workers.max(1) {
+            let Some(c) = queue.pop_first() else { break };
+            let work = f64::from(rungs[target[c]] - trained[c]);
             busy.push((now + work * rng.random_range(0.8..1.25), c));
         }
         let Some(k) = (0..busy.len()).min_by(|&a, &b| busy[a].0.total_cmp(&busy[b].0)) else {
@@ -287,49 +285,77 @@ pub fn replay_asha(rec: &Recording, s: &AshaSetup, seed: u64) -> Result<Replay, 
         };
         let (t, c) = busy.swap_remove(k);
         now = t;
-        let target = rungs[cells[c].target_rung];
-        epochs_used += u64::from(target - cells[c].trained);
-        cells[c].trained = target;
-        if cells[c].target_rung + 1 == rungs.len() {
-            cells[c].standing = Standing::Closed;
+        epochs += u64::from(rungs[target[c]] - trained[c]);
+        trained[c] = rungs[target[c]];
+        depth[c] = target[c];
+        if target[c] == last {
+            standing[c] = Standing::Closed;
         } else {
-            let score = *cells[c]
-                .run
-                .evals
-                .get(&target)
-                .ok_or("missing evaluation")?;
-            cells[c].scores.push(score);
-            cells[c].standing = Standing::Paused;
+            scores[c].push(values[c][target[c]]);
+            standing[c] = Standing::Paused;
         }
-        let view: Vec<AshaCell> = cells
-            .iter()
-            .enumerate()
-            .map(|(n, x)| AshaCell {
-                cell: CellId(n as i64),
-                scores: x.scores.clone(),
-                standing: x.standing,
+        let view: Vec<AshaCell> = (0..n)
+            .map(|x| AshaCell {
+                cell: CellId(x as i64),
+                scores: scores[x].clone(),
+                standing: standing[x],
             })
             .collect();
-        for d in asha::decide(&view, rungs.len(), s.reduction) {
-            let n = d.cell.0 as usize;
+        let due = if synchronous && !asha::no_cell_training(&view) {
+            vec![]
+        } else {
+            asha::decide(&view, rungs.len(), reduction)
+        };
+        for d in due {
+            let x = d.cell.0 as usize;
             if d.continued {
-                cells[n].target_rung = d.rung + 1;
-                cells[n].standing = Standing::Training;
-                // As in the coordinator, a continued cell goes to the back of the queue's
-                // order by id; deeper cells are few, so this costs them little.
-                queue.push_back(n);
+                target[x] = d.rung + 1;
+                standing[x] = Standing::Training;
+                queue.insert(x);
             } else {
-                cells[n].standing = Standing::Closed;
+                standing[x] = Standing::Closed;
             }
         }
     }
-    let answer = cells
-        .iter()
-        .filter(|x| x.trained == rec.epochs)
-        .max_by(|a, b| a.run.score.total_cmp(&b.run.score))
+    (depth, epochs)
+}
+
+/// One ASHA replay with `seed`: one recorded replicate drawn per point, the points as
+/// cells in a random lease order.
+pub fn replay_asha(rec: &Recording, s: &AshaSetup, seed: u64) -> Result<Replay, String> {
+    let rungs = asha_rungs(rec, s)?;
+    let last = rungs.len() - 1;
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut points = Vec::new();
+    let mut values = Vec::new();
+    for i in 0..rec.w1_values.len() {
+        for j in 0..rec.w2_values.len() {
+            let p = rec.point(i, j).ok_or("unvalidated recording")?;
+            let run = &p.runs[rng.random_range(0..p.runs.len())];
+            let v = rungs[..last]
+                .iter()
+                .map(|r| run.evals.get(r).copied().ok_or("missing evaluation"))
+                .chain(std::iter::once(Ok(run.score)))
+                .collect::<Result<Vec<f64>, _>>()?;
+            points.push((i, j));
+            values.push(v);
+        }
+    }
+    // The coordinator creates a halving sweep's cells, and so leases them, in a random
+    // order fixed by the sweep's seed (`ResolvedSpec::cells_in_lease_order`); a replay
+    // draws its own.
+    let mut order: Vec<usize> = (0..values.len()).collect();
+    order.shuffle(&mut rng);
+    let points: Vec<(usize, usize)> = order.iter().map(|&k| points[k]).collect();
+    let values: Vec<Vec<f64>> = order.iter().map(|&k| values[k].clone()).collect();
+    let (depth, epochs) =
+        simulate_halving(&values, &rungs, s.reduction, s.workers, false, &mut rng);
+    let answer = (0..values.len())
+        .filter(|&c| depth[c] == last)
+        .max_by(|&a, &b| values[a][last].total_cmp(&values[b][last]))
         .ok_or("no cell reached the full budget")?;
-    let (i, j) = answer.point;
-    Ok(judge(rec, epochs_used, rec.mean(i, j), answer.point))
+    let (i, j) = points[answer];
+    Ok(judge(rec, epochs, rec.mean(i, j), (i, j)))
 }
 
 /// Evolutionary-search settings of a replay.
@@ -341,22 +367,15 @@ pub struct CmaesSetup {
     pub sigma: f64,
     /// Epoch budget as a fraction of the grid's.
     pub budget_fraction: f64,
-    /// Successive halving inside each generation: (first rung, reduction), as the
-    /// coordinator's `method = "cmaes"` with `min_epochs`.
-    pub halving: Option<(u32, u32)>,
+    /// Successive halving inside each generation (first rung, reduction, simulated
+    /// workers), as the coordinator's `method = "cmaes"` with `min_epochs`.
+    pub halving: Option<AshaSetup>,
 }
 
 /// One CMA-ES replay with `seed`.
 pub fn replay_cmaes(rec: &Recording, s: &CmaesSetup, seed: u64) -> Result<Replay, String> {
-    let (rungs, reduction) = match s.halving {
-        Some((min_epochs, reduction)) => {
-            let setup = AshaSetup {
-                min_epochs,
-                reduction,
-                workers: 1,
-            };
-            (asha_rungs(rec, &setup)?, reduction)
-        }
+    let (rungs, reduction) = match &s.halving {
+        Some(h) => (asha_rungs(rec, h)?, h.reduction),
         None => (vec![rec.epochs], 2),
     };
     let per_generation = gaitsweep_core::spec::halving_cost(s.population as u32, &rungs, reduction);
@@ -379,50 +398,54 @@ pub fn replay_cmaes(rec: &Recording, s: &CmaesSetup, seed: u64) -> Result<Replay
     let mut history: Vec<Vec<f64>> = Vec::new();
     let mut best: Option<([f64; 2], f64)> = None;
     let last = rungs.len() - 1;
+    let mut epochs = 0u64;
     while let NextStep::Generation(candidates) = evolution::next_step(&params, &history)? {
-        // One replicate drawn per surrounding grid point and candidate: its rung
-        // evaluations and final score are that candidate's run.
+        // A candidate's run: the point means' surface interpolated at the candidate, plus
+        // one run's noise, the deviation of a replicate drawn at the nearest grid point from
+        // that point's mean (at every rung the same replicate). At a grid point it is exactly
+        // the drawn replicate; between points its noise keeps a single run's size (averaging
+        // draws of the four surrounding points would shrink it).
         let runs: Vec<Vec<f64>> = candidates
             .iter()
             .map(|x| {
-                let mut picks: BTreeMap<(usize, usize), usize> = BTreeMap::new();
+                let (ni, nj) = rec.nearest(x[0], x[1]);
+                let near = rec.point(ni, nj).expect("validated");
+                let drawn = &near.runs[rng.random_range(0..near.runs.len())];
                 rungs
                     .iter()
                     .enumerate()
                     .map(|(k, &r)| {
-                        rec.interpolate(x[0], x[1], &mut |i, j| {
+                        let at =
+                            |run: &RecordedRun| if k == last { run.score } else { run.evals[&r] };
+                        let mean_at = |i: usize, j: usize| {
                             let p = rec.point(i, j).expect("validated");
-                            let n = *picks
-                                .entry((i, j))
-                                .or_insert_with(|| rng.random_range(0..p.runs.len()));
-                            if k == last {
-                                p.runs[n].score
-                            } else {
-                                p.runs[n].evals[&r]
-                            }
-                        })
+                            p.runs.iter().map(at).sum::<f64>() / p.runs.len() as f64
+                        };
+                        rec.interpolate(x[0], x[1], &mut |i, j| mean_at(i, j)) + at(drawn)
+                            - mean_at(ni, nj)
                     })
                     .collect()
             })
             .collect();
+        // The generation's candidates are cells of their own, halved synchronously among
+        // themselves as the coordinator does; without halving each trains to the end.
+        let (depth, spent) = match &s.halving {
+            Some(h) => simulate_halving(&runs, &rungs, reduction, h.workers, true, &mut rng),
+            None => (
+                vec![last; runs.len()],
+                runs.len() as u64 * u64::from(rec.epochs),
+            ),
+        };
+        epochs += spent;
         let mut fitness = vec![0.0; candidates.len()];
-        let mut alive: Vec<usize> = (0..candidates.len()).collect();
-        for k in 0..last {
-            alive.sort_by(|&a, &b| runs[b][k].total_cmp(&runs[a][k]).then(a.cmp(&b)));
-            let keep = (alive.len() / reduction.max(2) as usize).max(1);
-            for &c in &alive[keep..] {
-                fitness[c] = evolution::halving_fitness(k, runs[c][k]);
-            }
-            alive.truncate(keep);
-        }
-        for &c in &alive {
-            let v = runs[c][last];
+        for (c, &d) in depth.iter().enumerate() {
+            let v = runs[c][d];
             fitness[c] = if s.halving.is_some() {
-                evolution::halving_fitness(last, v)
+                evolution::halving_fitness(d, v)
             } else {
                 v
             };
-            if best.is_none_or(|b| v > b.1) {
+            if d == last && best.is_none_or(|b| v > b.1) {
                 best = Some((candidates[c], v));
             }
         }
@@ -436,7 +459,6 @@ pub fn replay_cmaes(rec: &Recording, s: &CmaesSetup, seed: u64) -> Result<Replay
         )
     })?;
     let truth = rec.interpolate(x[0], x[1], &mut |i, j| rec.mean(i, j));
-    let epochs = history.len() as u64 * per_generation;
     Ok(judge(rec, epochs, truth, rec.nearest(x[0], x[1])))
 }
 
@@ -675,7 +697,11 @@ mod tests {
             population: 6,
             sigma: 0.3,
             budget_fraction: 1.0 / 3.0,
-            halving: Some((10, 3)),
+            halving: Some(AshaSetup {
+                min_epochs: 10,
+                reduction: 3,
+                workers: 4,
+            }),
         };
         let runs: Vec<Replay> = (0..30)
             .map(|k| replay_cmaes(&rec, &halved, k).unwrap())

@@ -124,7 +124,7 @@ async fn main() -> anyhow::Result<()> {
             // The same search with successive halving inside each generation, at ASHA's
             // rungs.
             let halved = CmaesSetup {
-                halving: Some((min_epochs, reduction)),
+                halving: Some(asha),
                 ..cmaes
             };
             let (best_point, best) = rec.best();

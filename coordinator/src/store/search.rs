@@ -106,7 +106,10 @@ pub(super) async fn apply_asha(
     };
     let rungs = spec.rungs();
     // An evolutionary search halves inside each generation (w1_index): its candidates
-    // compete with each other, not with earlier generations.
+    // compete with each other, not with earlier generations, and synchronously (a rung is
+    // decided once none of the generation trains): the next generation waits for the whole
+    // one anyway, and the budget buys generations at synchronous halving's cost, which
+    // asynchronous promotion could overrun.
     let generations = matches!(spec.search, Search::Cmaes { .. });
     let states: Vec<(i64, String, i64)> =
         sqlx::query_as("SELECT id, state, w1_index FROM cells WHERE sweep_id = $1 ORDER BY id")
@@ -149,6 +152,7 @@ pub(super) async fn apply_asha(
     }
     let due: Vec<asha::Decision> = groups
         .values()
+        .filter(|cells| !generations || asha::no_cell_training(cells))
         .flat_map(|cells| asha::decide(cells, rungs.len(), reduction))
         .collect();
     let mut out = Vec::new();

@@ -451,7 +451,7 @@ impl Store for SqlStore {
         let cells = if search::evolution_params(spec).is_some() {
             spec.candidate_cells(0, &search::first_generation(spec)?)
         } else {
-            spec.cells()
+            spec.cells_in_lease_order()
         };
         search::insert_cells(&mut tx, SweepId(id), &cells, spec.rungs()[0]).await?;
         let rec = sweep_tx(&mut tx, SweepId(id)).await?;

@@ -579,16 +579,20 @@ async fn successive_halving_continues_the_top_third_and_stops_the_rest() {
             .unwrap();
         assert!(dup.duplicate && dup.decisions.is_empty());
     }
-    // ASHA continues a cell as soon as it is in the top floor(n/3): cell 2 (0.6) at n = 3;
-    // at n = 6 the top two are 0.9 and 0.6; the rung is then closed and the rest stop.
-    let cells = store.cells(sweep.id).await.unwrap();
-    let id = |i: usize| cells[i].id;
+    // ASHA continues a cell as soon as it is in the top floor(n/3): the second leased
+    // (0.6) at n = 3; at n = 6 the top two are 0.9 and 0.6; the rung is then closed and the
+    // rest stop. (A halving sweep's cells are leased in a seeded random order of the grid,
+    // by id: `id(i)` is the i-th leased.)
+    let id = |i: usize| grants[i].cell.id;
+    assert!(grants.windows(2).all(|g| g[0].cell.id < g[1].cell.id));
     let cont: Vec<CellId> = decided.iter().filter(|d| d.1).map(|d| d.0).collect();
     assert_eq!(cont, vec![id(1), id(3)]);
     let stopped = decided.iter().filter(|d| !d.1).count();
     assert_eq!(stopped, 4);
+    let cells = store.cells(sweep.id).await.unwrap();
+    let state = |i: usize| cells.iter().find(|c| c.id == id(i)).unwrap().state;
     assert_eq!(
-        cells.iter().map(|c| c.state).collect::<Vec<_>>(),
+        (0..6).map(state).collect::<Vec<_>>(),
         [
             CellState::Stopped,
             CellState::Queued,
