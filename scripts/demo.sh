@@ -13,29 +13,16 @@ OUT="${GAITSWEEP_DEMO_OUT:-$PWD/demo-output}"
 rm -rf "$OUT"
 mkdir -p "$OUT/data"
 BIN="${CARGO_TARGET_DIR:-$PWD/target}/release"
-pids=()
-cleanup() {
-  trap - EXIT INT TERM
-  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-}
-trap cleanup EXIT
-trap 'echo "interrupted: stopping coordinator and workers" >&2; exit 130' INT TERM
+source scripts/procs.sh
+stop_on_exit "interrupted: stopping coordinator and workers"
 
 "$BIN/coordinator" serve --listen 127.0.0.1:0 --http 127.0.0.1:0 --data-dir "$OUT/data" > "$OUT/coordinator.log" 2>&1 &
 pids+=($!)
-for _ in $(seq 1 100); do
-  [ -s "$OUT/data/coordinator.addr" ] && break
-  sleep 0.1
-done
-[ -s "$OUT/data/coordinator.addr" ] || { echo "coordinator did not start; see $OUT/coordinator.log" >&2; exit 1; }
+wait_for_file "$OUT/data/coordinator.addr" || { echo "coordinator did not start; see $OUT/coordinator.log" >&2; exit 1; }
 URL="http://$(cat "$OUT/data/coordinator.addr")"
 export GAITSWEEP_URL="$URL"
 echo "coordinator on $URL, data in $OUT/data"
-for _ in $(seq 1 50); do
-  [ -s "$OUT/data/http.addr" ] && break
-  sleep 0.1
-done
+wait_for_file "$OUT/data/http.addr" || true
 echo "live page: http://$(cat "$OUT/data/http.addr")/ (open it in a browser to watch the sweep)"
 
 # One worker with every core by default: successive halving leaves one cell training at

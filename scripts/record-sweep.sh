@@ -24,25 +24,15 @@ if [ "$fresh" = 1 ] && [ -z "$SPEC" ]; then
   echo "no sweep in $DATA yet: pass the spec to record as the second argument" >&2
   exit 2
 fi
-pids=()
-cleanup() {
-  trap - EXIT INT TERM
-  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-}
-trap cleanup EXIT
-trap 'echo "stopping: resume with scripts/record-sweep.sh $DATA" >&2; exit 130' INT TERM
+source scripts/procs.sh
+stop_on_exit "stopping: resume with scripts/record-sweep.sh $DATA"
 
 rm -f "$DATA/coordinator.addr"
 # Every restart expires the leases it interrupted, which counts as an attempt: a recording
 # spread over many sittings must not fail its cells for that.
 "$BIN/coordinator" serve --listen 127.0.0.1:0 --data-dir "$DATA" --max-attempts 1000 >> "$DATA/coordinator.log" 2>&1 &
 pids+=($!)
-for _ in $(seq 1 100); do
-  [ -s "$DATA/coordinator.addr" ] && break
-  sleep 0.1
-done
-[ -s "$DATA/coordinator.addr" ] || { echo "coordinator did not start; see $DATA/coordinator.log" >&2; exit 1; }
+wait_for_file "$DATA/coordinator.addr" || { echo "coordinator did not start; see $DATA/coordinator.log" >&2; exit 1; }
 export GAITSWEEP_URL="http://$(cat "$DATA/coordinator.addr")"
 WORKERS="${GAITSWEEP_RECORD_WORKERS:-2}"
 for i in $(seq 1 "$WORKERS"); do
