@@ -1,13 +1,22 @@
 # Sourced by scripts/demo.sh and scripts/record-sweep.sh: the background processes they
-# start (append each pid to `pids`) are stopped when the script exits, on success, error,
-# Ctrl-C or SIGTERM, and a bounded wait for the files a process writes once it is ready.
+# start (append each pid to `pids`, the coordinator first) are stopped when the script
+# exits, on success, error, Ctrl-C or SIGTERM, and a bounded wait for the files a process
+# writes once it is ready.
 
 pids=()
 
+# The first process started (the coordinator) is stopped last: the others (workers, a
+# watcher) are stopped first and waited for, so that a worker stopped mid-cell finishes its
+# epoch, uploads a checkpoint and gives the cell back while the coordinator still listens.
 cleanup() {
   trap - EXIT INT TERM
-  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
-  wait 2>/dev/null || true
+  local rest=("${pids[@]:1}")
+  for p in "${rest[@]}"; do kill "$p" 2>/dev/null || true; done
+  for p in "${rest[@]}"; do wait "$p" 2>/dev/null || true; done
+  if [ "${#pids[@]}" -gt 0 ]; then
+    kill "${pids[0]}" 2>/dev/null || true
+    wait 2>/dev/null || true
+  fi
 }
 
 # stop_on_exit MESSAGE: stop every process in `pids` on exit; on Ctrl-C or SIGTERM print
