@@ -270,6 +270,13 @@ mod tests {
         (cells, log)
     }
 
+    /// Scores of `n` cells at `rungs` rungs, drawn from `raw`.
+    fn scores_from(raw: &[f64], n: usize, rungs: usize) -> Vec<Vec<f64>> {
+        (0..n)
+            .map(|i| (0..rungs).map(|k| raw[(i * 5 + k) % raw.len()]).collect())
+            .collect()
+    }
+
     proptest! {
         #[test]
         fn every_sweep_ends_and_every_decision_follows_the_rules(
@@ -279,9 +286,7 @@ mod tests {
             raw in proptest::collection::vec(-1.0f64..1.0, 80),
             order in proptest::collection::vec(0usize..100, 1..40),
         ) {
-            let scores: Vec<Vec<f64>> = (0..n)
-                .map(|i| (0..rungs).map(|k| raw[(i * 5 + k) % raw.len()]).collect())
-                .collect();
+            let scores = scores_from(&raw, n, rungs);
             let (cells, log) = play(&scores, rungs, reduction, &order);
             // Everyone ends closed (done or stopped), nobody is left paused or training.
             prop_assert!(cells.iter().all(|c| c.standing == Standing::Closed));
@@ -313,9 +318,7 @@ mod tests {
             raw in proptest::collection::vec(-1.0f64..1.0, 80),
             order in proptest::collection::vec(0usize..100, 1..40),
         ) {
-            let scores: Vec<Vec<f64>> = (0..n)
-                .map(|i| (0..rungs).map(|k| raw[(i * 5 + k) % raw.len()]).collect())
-                .collect();
+            let scores = scores_from(&raw, n, rungs);
             let (cells, _) = play_as(&scores, rungs, reduction, &order, true);
             prop_assert!(cells.iter().all(|c| c.standing == Standing::Closed));
             // n cells reach rung 0, then max(1, floor(n_k / eta)) each next rung: what

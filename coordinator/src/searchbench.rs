@@ -326,8 +326,7 @@ pub fn replay_asha(rec: &Recording, s: &AshaSetup, seed: u64) -> Result<Replay, 
     let rungs = asha_rungs(rec, s)?;
     let last = rungs.len() - 1;
     let mut rng = StdRng::seed_from_u64(seed);
-    let mut points = Vec::new();
-    let mut values = Vec::new();
+    let mut cells: Vec<((usize, usize), Vec<f64>)> = Vec::new();
     for i in 0..rec.w1_values.len() {
         for j in 0..rec.w2_values.len() {
             let p = rec.point(i, j).ok_or("unvalidated recording")?;
@@ -337,17 +336,14 @@ pub fn replay_asha(rec: &Recording, s: &AshaSetup, seed: u64) -> Result<Replay, 
                 .map(|r| run.evals.get(r).copied().ok_or("missing evaluation"))
                 .chain(std::iter::once(Ok(run.score)))
                 .collect::<Result<Vec<f64>, _>>()?;
-            points.push((i, j));
-            values.push(v);
+            cells.push(((i, j), v));
         }
     }
     // The coordinator creates a halving sweep's cells, and so leases them, in a random
     // order fixed by the sweep's seed (`ResolvedSpec::cells_in_lease_order`); a replay
     // draws its own.
-    let mut order: Vec<usize> = (0..values.len()).collect();
-    order.shuffle(&mut rng);
-    let points: Vec<(usize, usize)> = order.iter().map(|&k| points[k]).collect();
-    let values: Vec<Vec<f64>> = order.iter().map(|&k| values[k].clone()).collect();
+    cells.shuffle(&mut rng);
+    let (points, values): (Vec<(usize, usize)>, Vec<Vec<f64>>) = cells.into_iter().unzip();
     let (depth, epochs) =
         simulate_halving(&values, &rungs, s.reduction, s.workers, false, &mut rng);
     let answer = (0..values.len())
