@@ -387,15 +387,11 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         .iter()
         .find(|c| c.cell_id == s.best_cell_id)
         .map(|b| (b.terrain_index, b.w1_index, b.w2_index));
-    if spec.search_method == "cmaes" {
+    let evolutionary = matches!(spec.search_method.as_str(), "cmaes" | "genetic");
+    if evolutionary {
         render_candidates(&mut o, cells, replicates, best_point);
     }
-    for (ti, terrain) in spec
-        .terrains
-        .iter()
-        .enumerate()
-        .filter(|_| spec.search_method != "cmaes")
-    {
+    for (ti, terrain) in spec.terrains.iter().enumerate().filter(|_| !evolutionary) {
         let point = |i: usize, j: usize| -> Vec<&pb::Cell> {
             cells
                 .iter()

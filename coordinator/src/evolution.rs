@@ -1,6 +1,8 @@
-//! The evolutionary search over continuous (w1, w2) (`[search] method = "cmaes"`): CMA-ES
-//! (Hansen 2016) from the `cmaes` crate, driven as a pure function from the scores of the
-//! finished generations to the next generation's candidates.
+//! The evolutionary searches, each driven as a pure function from the scores of the
+//! finished generations to the next generation's candidates: CMA-ES over continuous
+//! (w1, w2) (`[search] method = "cmaes"`, Hansen 2016, from the `cmaes` crate) and the
+//! genetic algorithm over the spec's grid points (`method = "genetic"`, see
+//! [`crate::genetic`]).
 //!
 //! The crate evaluates an objective function inside its own loop; a sweep's candidates are
 //! trained by workers over hours. So the optimiser's state is never stored: it is rebuilt
@@ -14,6 +16,7 @@
 //! that point's score minus the distance it lay outside (the standard repair-and-penalty
 //! treatment of box constraints), so the search distribution is pulled back inside.
 
+use crate::genetic::{self, GaStep};
 use cmaes::{CMAESOptions, DVector, Mode};
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -33,15 +36,33 @@ impl Bounds {
     }
 }
 
+/// Which evolutionary search proposes the candidates.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Optimizer {
+    /// CMA-ES in the bounds' rectangle.
+    Cmaes {
+        /// Initial step size as a fraction of each axis' range.
+        sigma: f64,
+    },
+    /// The genetic algorithm over the grid of these values (each sorted ascending, so
+    /// that one grid step is a small change of the weight).
+    Genetic {
+        /// The w1 values.
+        w1: Vec<f64>,
+        /// The w2 values.
+        w2: Vec<f64>,
+    },
+}
+
 /// What the search needs besides the scores.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct EvolutionParams {
     /// The (w1, w2) rectangle.
     pub bounds: Bounds,
     /// Candidates per generation (lambda, at least 2).
     pub population: usize,
-    /// Initial step size as a fraction of each axis' range.
-    pub sigma: f64,
+    /// CMA-ES or the genetic algorithm.
+    pub optimizer: Optimizer,
     /// Generations the epoch budget pays for.
     pub generations: u32,
     /// Seed of the optimiser.
@@ -53,7 +74,8 @@ pub struct EvolutionParams {
 pub enum NextStep {
     /// Train these (w1, w2) candidates as the next generation.
     Generation(Vec<[f64; 2]>),
-    /// The search is over: the budget is spent or CMA-ES met a termination criterion.
+    /// The search is over: the budget is spent, CMA-ES met a termination criterion or the
+    /// genetic algorithm has trained every grid point.
     Done(String),
 }
 
@@ -91,6 +113,23 @@ pub fn next_step(p: &EvolutionParams, history: &[Vec<f64>]) -> Result<NextStep, 
             p.generations
         )));
     }
+    match &p.optimizer {
+        Optimizer::Cmaes { sigma } => cmaes_step(p, *sigma, history),
+        Optimizer::Genetic { w1, w2 } => Ok(
+            match genetic::next_generation(w1.len(), w2.len(), p.population, p.seed, history) {
+                GaStep::Generation(points) => {
+                    NextStep::Generation(points.iter().map(|&(i, j)| [w1[i], w2[j]]).collect())
+                }
+                GaStep::Exhausted => NextStep::Done(format!(
+                    "every one of the grid's {} points has been trained",
+                    w1.len() * w2.len()
+                )),
+            },
+        ),
+    }
+}
+
+fn cmaes_step(p: &EvolutionParams, sigma: f64, history: &[Vec<f64>]) -> Result<NextStep, String> {
     // The objective answers from `history` while replaying and records the samples of the
     // generation asked for.
     struct Feed {
@@ -127,7 +166,7 @@ pub fn next_step(p: &EvolutionParams, history: &[Vec<f64>]) -> Result<NextStep, 
             }
         }
     };
-    let mut es = CMAESOptions::new(vec![0.5, 0.5], p.sigma)
+    let mut es = CMAESOptions::new(vec![0.5, 0.5], sigma)
         .mode(Mode::Maximize)
         .population_size(p.population)
         .seed(p.seed)
@@ -167,7 +206,7 @@ mod tests {
                 hi: [12.0, -2.0],
             },
             population: 6,
-            sigma: 0.3,
+            optimizer: Optimizer::Cmaes { sigma: 0.3 },
             generations,
             seed: 7,
         }
@@ -273,5 +312,35 @@ mod tests {
             &[]
         )
         .is_err());
+    }
+
+    #[test]
+    fn the_genetic_algorithm_proposes_grid_points_until_the_grid_is_spent() {
+        let (w1, w2) = (vec![2.0, 12.0], vec![-10.0, -6.0, -2.0]);
+        let p = EvolutionParams {
+            population: 4,
+            optimizer: Optimizer::Genetic {
+                w1: w1.clone(),
+                w2: w2.clone(),
+            },
+            ..params(10)
+        };
+        let mut history = Vec::new();
+        let mut seen = Vec::new();
+        let why = loop {
+            match next_step(&p, &history).unwrap() {
+                NextStep::Generation(c) => {
+                    assert!(
+                        c.iter().all(|x| w1.contains(&x[0]) && w2.contains(&x[1])),
+                        "{c:?}"
+                    );
+                    history.push(c.iter().map(|&x| score(x)).collect());
+                    seen.extend(c);
+                }
+                NextStep::Done(why) => break why,
+            }
+        };
+        assert_eq!((history.len(), seen.len()), (2, 6), "{seen:?}");
+        assert!(why.contains("6 points"), "{why}");
     }
 }

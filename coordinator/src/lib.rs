@@ -7,6 +7,7 @@ pub mod auth;
 pub mod blobs;
 pub mod error;
 pub mod evolution;
+pub mod genetic;
 pub mod leases;
 pub mod live;
 pub mod loadgen;

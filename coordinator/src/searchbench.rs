@@ -28,12 +28,17 @@
 //!   epochs counted are those trained. Its answer is the candidate trained to the end with
 //!   the best observed score; its true value is the interpolation of the point means.
 //!
+//! - **Genetic algorithm**: [`crate::evolution::next_step`] with the genetic algorithm over
+//!   the grid's points ([`crate::genetic`]), budgeted and halved as CMA-ES is. Its
+//!   candidates are grid points, so a candidate's run is a replicate drawn at its point and
+//!   no interpolation is involved.
+//!
 //! A replay *finds the best* when its answer's nearest grid point is the grid's best point,
 //! and is *within 5%* when the answer's true value is at least the best mean minus 5% of
 //! its magnitude. Regret is the best mean minus the answer's true value.
 
 use crate::asha::{self, AshaCell, Standing};
-use crate::evolution::{self, Bounds, EvolutionParams, NextStep};
+use crate::evolution::{self, Bounds, EvolutionParams, NextStep, Optimizer};
 use gaitsweep_core::CellId;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -356,20 +361,22 @@ pub fn replay_asha(rec: &Recording, s: &AshaSetup, seed: u64) -> Result<Replay, 
 
 /// Evolutionary-search settings of a replay.
 #[derive(Debug, Clone, Copy)]
-pub struct CmaesSetup {
+pub struct EvolutionSetup {
+    /// The genetic algorithm over the grid's points instead of CMA-ES.
+    pub genetic: bool,
     /// Candidates per generation.
     pub population: usize,
-    /// Initial step, fraction of each axis' range.
+    /// CMA-ES: initial step, fraction of each axis' range.
     pub sigma: f64,
     /// Epoch budget as a fraction of the grid's.
     pub budget_fraction: f64,
     /// Successive halving inside each generation (first rung, reduction, simulated
-    /// workers), as the coordinator's `method = "cmaes"` with `min_epochs`.
+    /// workers), as the coordinator's `method = "cmaes"` or `"genetic"` with `min_epochs`.
     pub halving: Option<AshaSetup>,
 }
 
-/// One CMA-ES replay with `seed`.
-pub fn replay_cmaes(rec: &Recording, s: &CmaesSetup, seed: u64) -> Result<Replay, String> {
+/// One replay of the evolutionary search (CMA-ES or the genetic algorithm) with `seed`.
+pub fn replay_evolution(rec: &Recording, s: &EvolutionSetup, seed: u64) -> Result<Replay, String> {
     let (rungs, reduction) = match &s.halving {
         Some(h) => (asha_rungs(rec, h)?, h.reduction),
         None => (vec![rec.epochs], 2),
@@ -386,7 +393,19 @@ pub fn replay_cmaes(rec: &Recording, s: &CmaesSetup, seed: u64) -> Result<Replay
             ],
         },
         population: s.population,
-        sigma: s.sigma,
+        optimizer: if s.genetic {
+            let sorted = |v: &[f64]| {
+                let mut v = v.to_vec();
+                v.sort_by(f64::total_cmp);
+                v
+            };
+            Optimizer::Genetic {
+                w1: sorted(&rec.w1_values),
+                w2: sorted(&rec.w2_values),
+            }
+        } else {
+            Optimizer::Cmaes { sigma: s.sigma }
+        },
         generations,
         seed,
     };
@@ -621,6 +640,44 @@ mod tests {
         assert!(sum.p_within_5pct >= 0.9, "{sum:?}");
     }
 
+    /// The same recording meets issue 10's target for the evolutionary search too with the
+    /// genetic algorithm over the grid's points (population 8, halving at 100 / 300 / 600
+    /// inside each generation, a third of the grid's epochs; the real sweep's spec
+    /// tests/data/search-genetic-anymal-flat-4x4-600.toml): within 5% of the best mean in at
+    /// least 90% of 200 replays. CMA-ES at the same settings does not (86.5%: its
+    /// candidates fall between grid points, where the interpolated surface is lower; see
+    /// BENCHMARKS.md), which this test pins too, so that a change to either shows.
+    #[test]
+    fn the_600_epoch_anymal_grid_meets_the_evolutionary_target_with_the_genetic_algorithm() {
+        let rec: Recording = serde_json::from_str(include_str!(
+            "../../tests/data/search-grid-anymal-flat-4x4-600.json"
+        ))
+        .unwrap();
+        rec.validate().unwrap();
+        let setup = |genetic| EvolutionSetup {
+            genetic,
+            population: 8,
+            sigma: 0.5,
+            budget_fraction: 1.0 / 3.0,
+            halving: Some(AshaSetup {
+                min_epochs: 100,
+                reduction: 3,
+                workers: 4,
+            }),
+        };
+        let replay = |s: &EvolutionSetup| {
+            let runs: Vec<Replay> = (0..200)
+                .map(|k| replay_evolution(&rec, s, k).unwrap())
+                .collect();
+            summarise(&runs)
+        };
+        let ga = replay(&setup(true));
+        assert!(ga.epoch_fraction <= 1.0 / 3.0, "{ga:?}");
+        assert!(ga.p_within_5pct >= 0.9, "{ga:?}");
+        let cmaes = replay(&setup(false));
+        assert!(cmaes.p_within_5pct < 0.9, "{cmaes:?}");
+    }
+
     #[test]
     fn a_single_seed_grid_is_only_as_sure_as_its_runs() {
         // Without noise the grid with one run per point always finds the best point.
@@ -686,29 +743,32 @@ mod tests {
     fn cmaes_uses_its_budget_and_closes_in() {
         let rec = synthetic(0.02);
         // A third of a 4 x 7 grid pays for one generation of six: the budget is respected.
-        let third = CmaesSetup {
+        let third = EvolutionSetup {
+            genetic: false,
             population: 6,
             sigma: 0.3,
             budget_fraction: 1.0 / 3.0,
             halving: None,
         };
-        let r = replay_cmaes(&rec, &third, 0).unwrap();
+        let r = replay_evolution(&rec, &third, 0).unwrap();
         assert!((r.epoch_fraction - 6.0 / 28.0).abs() < 1e-9, "{r:?}");
         // The grid's budget in generations of four: the search closes in on the best.
-        let full = CmaesSetup {
+        let full = EvolutionSetup {
+            genetic: false,
             population: 4,
             sigma: 0.3,
             budget_fraction: 1.0,
             halving: None,
         };
         let runs: Vec<Replay> = (0..30)
-            .map(|k| replay_cmaes(&rec, &full, k).unwrap())
+            .map(|k| replay_evolution(&rec, &full, k).unwrap())
             .collect();
         let sum = summarise(&runs);
         assert!(sum.epoch_fraction <= 1.0 + 1e-9, "{sum:?}");
         assert!(sum.p_within_5pct > 0.5 && sum.mean_regret < 0.05, "{sum:?}");
         // Successive halving inside generations buys more generations from a third.
-        let halved = CmaesSetup {
+        let halved = EvolutionSetup {
+            genetic: false,
             population: 6,
             sigma: 0.3,
             budget_fraction: 1.0 / 3.0,
@@ -719,7 +779,7 @@ mod tests {
             }),
         };
         let runs: Vec<Replay> = (0..30)
-            .map(|k| replay_cmaes(&rec, &halved, k).unwrap())
+            .map(|k| replay_evolution(&rec, &halved, k).unwrap())
             .collect();
         let sum = summarise(&runs);
         // 6x10 + 2x20 + 1x60 = 160 epochs a generation: 5 of them in 840.

@@ -104,23 +104,10 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
             eval_seconds: s.eval_seconds,
             seeds: s.replicates,
             eval_every: s.eval_every,
-            search_method: match s.search {
-                Search::Grid => "grid".into(),
-                Search::Asha { .. } => "asha".into(),
-                Search::Cmaes { .. } => "cmaes".into(),
-            },
-            search_min_epochs: match s.search {
-                Search::Asha { min_epochs, .. } | Search::Cmaes { min_epochs, .. } => min_epochs,
-                Search::Grid => 0,
-            },
-            search_reduction: match s.search {
-                Search::Asha { reduction, .. } | Search::Cmaes { reduction, .. } => reduction,
-                Search::Grid => 0,
-            },
-            search_population: match s.search {
-                Search::Cmaes { population, .. } => population,
-                _ => 0,
-            },
+            search_method: s.search.method().into(),
+            search_min_epochs: s.search.halving().map_or(0, |h| h.0),
+            search_reduction: s.search.halving().map_or(0, |h| h.1),
+            search_population: s.search.generations().map_or(0, |g| g.0),
             search_sigma: match s.search {
                 Search::Cmaes { sigma, .. } => sigma,
                 _ => 0.0,

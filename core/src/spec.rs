@@ -63,8 +63,9 @@ pub struct EvalSpec {
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SearchSpec {
-    /// `grid` (every cell to the end, the default) or `asha` (asynchronous successive
-    /// halving).
+    /// `grid` (every cell to the end, the default), `asha` (asynchronous successive
+    /// halving), `cmaes` (CMA-ES in the axes' rectangle) or `genetic` (a genetic algorithm
+    /// over the grid's points).
     pub method: String,
     /// ASHA: epochs of the first rung (default: epochs / reduction^3, at least 1).
     #[serde(default)]
@@ -72,15 +73,15 @@ pub struct SearchSpec {
     /// ASHA: the reduction factor eta; a rung continues the top 1/eta (default 3).
     #[serde(default)]
     pub reduction: Option<u32>,
-    /// CMA-ES: candidates per generation (default [`DEFAULT_POPULATION`]).
+    /// CMA-ES and genetic: candidates per generation (default [`DEFAULT_POPULATION`]).
     #[serde(default)]
     pub population: Option<u32>,
     /// CMA-ES: initial step size as a fraction of each axis' range (default
     /// [`DEFAULT_SIGMA`]).
     #[serde(default)]
     pub sigma: Option<f64>,
-    /// CMA-ES: training epochs over all candidates and replicates (default: a third of the
-    /// epochs the full grid would train).
+    /// CMA-ES and genetic: training epochs over all candidates and replicates (default: a
+    /// third of the epochs the full grid would train).
     #[serde(default)]
     pub budget_epochs: Option<u64>,
 }
@@ -120,6 +121,73 @@ pub enum Search {
         #[serde(default)]
         reduction: u32,
     },
+    /// A genetic algorithm over the grid's points (one terrain), the paper's proposal for a
+    /// cheaper search: candidates are grid points never trained before, bred from the best
+    /// points so far; cells as for CMA-ES (`w1_index` = generation, `w2_index` = candidate).
+    Genetic {
+        /// Candidates per generation (>= 2, at most the grid's points).
+        population: u32,
+        /// Generations the epoch budget pays for (no more than the grid's points fill).
+        generations: u32,
+        /// Successive halving inside each generation: epochs of the first rung (0: none).
+        #[serde(default)]
+        min_epochs: u32,
+        /// Its reduction factor (with `min_epochs`).
+        #[serde(default)]
+        reduction: u32,
+    },
+}
+
+impl Search {
+    /// The method's name, as a spec writes it.
+    pub fn method(&self) -> &'static str {
+        match self {
+            Search::Grid => "grid",
+            Search::Asha { .. } => "asha",
+            Search::Cmaes { .. } => "cmaes",
+            Search::Genetic { .. } => "genetic",
+        }
+    }
+
+    /// Candidates per generation and generations of an evolutionary search (CMA-ES or the
+    /// genetic algorithm); `None` for the grid and ASHA.
+    pub fn generations(&self) -> Option<(u32, u32)> {
+        match *self {
+            Search::Cmaes {
+                population,
+                generations,
+                ..
+            }
+            | Search::Genetic {
+                population,
+                generations,
+                ..
+            } => Some((population, generations)),
+            _ => None,
+        }
+    }
+
+    /// Successive halving's first rung and reduction factor: ASHA's, or those inside each
+    /// generation of an evolutionary search; `None` when the search does not halve.
+    pub fn halving(&self) -> Option<(u32, u32)> {
+        match *self {
+            Search::Asha {
+                min_epochs,
+                reduction,
+            } => Some((min_epochs, reduction)),
+            Search::Cmaes {
+                min_epochs,
+                reduction,
+                ..
+            }
+            | Search::Genetic {
+                min_epochs,
+                reduction,
+                ..
+            } if min_epochs > 0 => Some((min_epochs, reduction)),
+            _ => None,
+        }
+    }
 }
 
 /// Rungs of successive halving: `min_epochs * reduction^k` below `epochs`, then `epochs`.
@@ -431,14 +499,34 @@ impl SweepSpec {
         let grid_epochs = (terrains.len().max(1) * w1_values.len() * w2_values.len()) as u64
             * u64::from(replicates.max(1))
             * u64::from(epochs);
-        let search = self.resolve_search(epochs, replicates.max(1), grid_epochs, &mut problems);
-        if let Search::Cmaes { .. } = search {
-            if terrains.len() > 1 {
+        let points = w1_values.len() * w2_values.len();
+        let search = self.resolve_search(
+            epochs,
+            replicates.max(1),
+            grid_epochs,
+            points,
+            &mut problems,
+        );
+        if search.generations().is_some() && terrains.len() > 1 {
+            problems.push(format!(
+                "search.method {} searches one terrain, the spec has {}: create one sweep per terrain",
+                search.method(),
+                terrains.len()
+            ));
+        }
+        if let Search::Genetic { population, .. } = search {
+            let points = w1_values.len() * w2_values.len();
+            if points < 2 {
+                problems.push(
+                    "search.method genetic breeds grid points: give w1 and w2 at least 2 points between them".into(),
+                );
+            } else if population as usize > points {
                 problems.push(format!(
-                    "search.method cmaes searches one terrain, the spec has {}: create one sweep per terrain",
-                    terrains.len()
+                    "search.population is {population} but the grid has {points} points: a generation of the genetic algorithm trains distinct points, use at most {points} (or method = \"grid\")"
                 ));
             }
+        }
+        if let Search::Cmaes { .. } = search {
             let span = |v: &[f64]| {
                 let (lo, hi) = min_max(v);
                 hi > lo
@@ -449,12 +537,9 @@ impl SweepSpec {
                 );
             }
         }
-        if (matches!(search, Search::Asha { .. })
-            || matches!(search, Search::Cmaes { min_epochs, .. } if min_epochs > 0))
-            && self.seeds.unwrap_or(1) > 1
-        {
+        if search.halving().is_some() && self.seeds.unwrap_or(1) > 1 {
             problems.push(
-                "successive halving (search.method asha, or cmaes with min_epochs) ranks single training runs: use seeds = 1 with it".into(),
+                "successive halving (search.method asha, or cmaes or genetic with min_epochs) ranks single training runs: use seeds = 1 with it".into(),
             );
         }
         if replicates == 0 || replicates > MAX_REPLICATES {
@@ -462,13 +547,9 @@ impl SweepSpec {
                 "seeds is {replicates}: use 1 to {MAX_REPLICATES} replicates per grid point"
             ));
         }
-        let cells = match search {
-            Search::Cmaes {
-                population,
-                generations,
-                ..
-            } => population as usize * generations as usize,
-            _ => terrains.len().max(1) * w1_values.len() * w2_values.len(),
+        let cells = match search.generations() {
+            Some((population, generations)) => population as usize * generations as usize,
+            None => terrains.len().max(1) * w1_values.len() * w2_values.len(),
         } * replicates.clamp(1, MAX_REPLICATES) as usize;
         if cells > MAX_CELLS {
             problems.push(format!(
@@ -509,21 +590,23 @@ impl SweepSpec {
         epochs: u32,
         replicates: u32,
         grid_epochs: u64,
+        points: usize,
         problems: &mut Vec<String>,
     ) -> Search {
         let Some(s) = &self.search else {
             return Search::Grid;
         };
         let method = s.method.trim();
-        if !matches!(method, "asha" | "cmaes") && (s.min_epochs.is_some() || s.reduction.is_some())
+        let evolutionary = matches!(method, "cmaes" | "genetic");
+        if !(method == "asha" || evolutionary) && (s.min_epochs.is_some() || s.reduction.is_some())
         {
             problems.push(
-                "search.min_epochs and search.reduction belong to method = \"asha\" or \"cmaes\""
+                "search.min_epochs and search.reduction belong to method = \"asha\", \"cmaes\" or \"genetic\""
                     .into(),
             );
         }
-        // Successive halving (method asha, or inside each generation of cmaes when
-        // min_epochs or reduction is given).
+        // Successive halving (method asha, or inside each generation of cmaes or genetic
+        // when min_epochs or reduction is given).
         let halving = |problems: &mut Vec<String>| -> (u32, u32) {
             let reduction = s.reduction.unwrap_or(DEFAULT_REDUCTION);
             if reduction < 2 {
@@ -542,17 +625,18 @@ impl SweepSpec {
             }
             (min_epochs, reduction)
         };
-        if method != "cmaes"
-            && (s.population.is_some() || s.sigma.is_some() || s.budget_epochs.is_some())
-        {
+        if !evolutionary && (s.population.is_some() || s.budget_epochs.is_some()) {
             problems.push(
-                "search.population, search.sigma and search.budget_epochs belong to method = \"cmaes\""
+                "search.population and search.budget_epochs belong to method = \"cmaes\" or \"genetic\""
                     .into(),
             );
         }
+        if method != "cmaes" && s.sigma.is_some() {
+            problems.push("search.sigma belongs to method = \"cmaes\"".into());
+        }
         match method {
             "" | "grid" => Search::Grid,
-            "cmaes" => {
+            "cmaes" | "genetic" => {
                 let population = s.population.unwrap_or(DEFAULT_POPULATION);
                 if !(2..=1000).contains(&population) {
                     problems.push(format!(
@@ -586,12 +670,24 @@ impl SweepSpec {
                         "search.budget_epochs is {budget}: one generation of {population} candidates x {replicates} replicates needs {per_generation} epochs"
                     ));
                 }
-                Search::Cmaes {
-                    population,
-                    sigma,
-                    generations: generations.min(u64::from(u32::MAX)) as u32,
-                    min_epochs,
-                    reduction,
+                if method == "cmaes" {
+                    Search::Cmaes {
+                        population,
+                        sigma,
+                        generations: generations.min(u64::from(u32::MAX)) as u32,
+                        min_epochs,
+                        reduction,
+                    }
+                } else {
+                    // The genetic algorithm trains each grid point once: no budget buys
+                    // more generations than the points fill.
+                    let filled = points.div_ceil(population.max(1) as usize) as u64;
+                    Search::Genetic {
+                        population,
+                        generations: generations.min(filled) as u32,
+                        min_epochs,
+                        reduction,
+                    }
                 }
             }
             "asha" => {
@@ -603,7 +699,7 @@ impl SweepSpec {
             }
             other => {
                 problems.push(format!(
-                    "search.method {other:?} is unknown: use \"grid\", \"asha\" or \"cmaes\""
+                    "search.method {other:?} is unknown: use \"grid\", \"asha\", \"cmaes\" or \"genetic\""
                 ));
                 Search::Grid
             }
@@ -676,53 +772,27 @@ impl ResolvedSpec {
     /// only the last; with successive halving `min_epochs * reduction^k` below `epochs`,
     /// then `epochs`.
     pub fn rungs(&self) -> Vec<u32> {
-        match self.search {
-            Search::Asha {
-                min_epochs,
-                reduction,
-            } => halving_rungs(min_epochs, reduction, self.epochs),
-            Search::Cmaes {
-                min_epochs,
-                reduction,
-                ..
-            } if min_epochs > 0 => halving_rungs(min_epochs, reduction, self.epochs),
-            _ => vec![self.epochs],
+        match self.search.halving() {
+            Some((min_epochs, reduction)) => halving_rungs(min_epochs, reduction, self.epochs),
+            None => vec![self.epochs],
         }
     }
 
     /// The epochs an evolutionary search is budgeted at: its generations times what one
     /// costs (with successive halving inside a generation, its synchronous cost).
     pub fn budget_epochs(&self) -> Option<u64> {
-        let Search::Cmaes {
-            population,
-            generations,
-            min_epochs,
-            reduction,
-            ..
-        } = self.search
-        else {
-            return None;
-        };
-        let per = if min_epochs > 0 {
-            halving_cost(population, &self.rungs(), reduction)
-        } else {
-            u64::from(population) * u64::from(self.epochs)
+        let (population, generations) = self.search.generations()?;
+        let per = match self.search.halving() {
+            Some((_, reduction)) => halving_cost(population, &self.rungs(), reduction),
+            None => u64::from(population) * u64::from(self.epochs),
         };
         Some(u64::from(generations) * per * u64::from(self.replicates.max(1)))
     }
 
-    /// Successive halving's reduction factor, if this spec halves (ASHA, or CMA-ES with
-    /// rungs inside each generation).
+    /// Successive halving's reduction factor, if this spec halves (ASHA, or an
+    /// evolutionary search with rungs inside each generation).
     pub fn halving_reduction(&self) -> Option<u32> {
-        match self.search {
-            Search::Asha { reduction, .. } => Some(reduction),
-            Search::Cmaes {
-                min_epochs,
-                reduction,
-                ..
-            } if min_epochs > 0 => Some(reduction),
-            _ => None,
-        }
+        self.search.halving().map(|h| h.1)
     }
 
     /// The (w1, w2) rectangle an evolutionary search proposes from: each axis' smallest
@@ -994,7 +1064,102 @@ mod tests {
         assert!(err("[search]\nmethod = \"asha\"\npopulation = 6\n")
             .contains("belong to method = \"cmaes\""));
         assert!(err("[search]\nmethod = \"grid\"\nmin_epochs = 6\n")
-            .contains("belong to method = \"asha\" or \"cmaes\""));
+            .contains("belong to method = \"asha\", \"cmaes\" or \"genetic\""));
+    }
+
+    /// The specs of the real search sweeps kept beside their recording resolve to the
+    /// searches BENCHMARKS.md reports them with.
+    #[test]
+    fn the_kept_search_specs_resolve() {
+        let resolve = |text: &str| {
+            SweepSpec::from_toml(text)
+                .unwrap()
+                .resolve_with(ok)
+                .unwrap()
+        };
+        let asha = resolve(include_str!(
+            "../../tests/data/search-asha-anymal-flat-4x4-600.toml"
+        ));
+        assert_eq!(asha.rungs(), vec![50, 100, 200, 400, 600]);
+        let cmaes = resolve(include_str!(
+            "../../tests/data/search-cmaes-anymal-flat-4x4-600.toml"
+        ));
+        assert_eq!(
+            (
+                cmaes.search.method(),
+                cmaes.search.generations(),
+                cmaes.rungs()
+            ),
+            ("cmaes", Some((8, 2)), vec![100, 300, 600])
+        );
+        let genetic = resolve(include_str!(
+            "../../tests/data/search-genetic-anymal-flat-4x4-600.toml"
+        ));
+        assert_eq!(
+            (
+                genetic.search.method(),
+                genetic.search.generations(),
+                genetic.rungs()
+            ),
+            ("genetic", Some((8, 2)), vec![100, 300, 600])
+        );
+        assert_eq!(genetic.budget_epochs(), Some(3000));
+    }
+
+    #[test]
+    fn genetic_breeds_grid_points_with_a_budget_no_larger_than_the_grid() {
+        // The 600-epoch recording's 4 x 4 grid (9,600 epochs): halving at 100 / 300 / 600
+        // costs 8x100 + 2x200 + 1x300 = 1500 epochs a generation of 8, so 3200 epochs pay
+        // for 2 generations; the 16 points are spent after 2 as well.
+        let base = "robot = \"anymal\"\nterrains = [\"flat\"]\nepochs = 600\nagents_per_cell = 64\n\
+                    w1 = { min = 2.0, max = 12.0, count = 4 }\nw2 = { min = -10.0, max = -2.0, count = 4 }\n";
+        let parse = |extra: &str| {
+            SweepSpec::from_toml(&format!("{base}{extra}"))
+                .unwrap()
+                .resolve_with(ok)
+        };
+        let g = parse("[search]\nmethod = \"genetic\"\npopulation = 8\nmin_epochs = 100\nreduction = 3\nbudget_epochs = 3200\n")
+            .unwrap();
+        let want = Search::Genetic {
+            population: 8,
+            generations: 2,
+            min_epochs: 100,
+            reduction: 3,
+        };
+        assert_eq!(g.search, want);
+        assert_eq!(g.rungs(), vec![100, 300, 600]);
+        assert_eq!(g.budget_epochs(), Some(3000));
+        assert_eq!(
+            (g.search.method(), g.search.generations()),
+            ("genetic", Some((8, 2)))
+        );
+        let back = SweepSpec::from(crate::pb::SweepSpec::from(&g))
+            .resolve_with(ok)
+            .unwrap();
+        assert_eq!(back.search, g.search);
+        // A budget the size of the grid still stops when every point is trained: 16 points
+        // in generations of 6 are 3 generations.
+        let big = parse("[search]\nmethod = \"genetic\"\nbudget_epochs = 1000000\n").unwrap();
+        assert_eq!(big.search.generations(), Some((DEFAULT_POPULATION, 3)));
+
+        let err = |extra: &str| parse(extra).unwrap_err().to_string();
+        assert!(err("[search]\nmethod = \"genetic\"\npopulation = 20\n")
+            .contains("search.population is 20 but the grid has 16 points"));
+        assert!(err("[search]\nmethod = \"genetic\"\nsigma = 0.3\n")
+            .contains("search.sigma belongs to method = \"cmaes\""));
+        assert!(
+            err("seeds = 2\n[search]\nmethod = \"genetic\"\nmin_epochs = 100\n")
+                .contains("use seeds = 1")
+        );
+        let one = SweepSpec::from_toml(
+            "robot = \"anymal\"\nagents_per_cell = 64\nepochs = 600\nw1 = { values = [3.0] }\nw2 = { values = [-6.0] }\n[search]\nmethod = \"genetic\"\n",
+        )
+        .unwrap()
+        .resolve_with(ok)
+        .unwrap_err()
+        .to_string();
+        assert!(one.contains("at least 2 points"), "{one}");
+        assert!(err("[search]\nmethod = \"evolve\"\n").contains("\"genetic\""));
     }
 
     #[test]

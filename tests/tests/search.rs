@@ -323,6 +323,134 @@ async fn cmaes_trains_generation_after_generation_across_a_restart() {
     assert!(text.contains("generation"), "show output: {text}");
 }
 
+/// The genetic algorithm end to end, with successive halving inside each generation: each
+/// generation trains grid points nobody trained before, halves them at the first rung and
+/// breeds the next from the scores; a coordinator restarted between generations asks for
+/// the same generation (no point twice, no rung decided twice); the budget ends the search
+/// once the grid is spent; the best candidate trained to the end is promoted, and the
+/// report draws the candidates.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn genetic_breeds_grid_points_generation_after_generation_across_a_restart() {
+    let _g = heavy();
+    let tmp = tempfile::tempdir().unwrap();
+    let args = ["--lease-seconds", "2"];
+    let mut coord = Coord::start(tmp.path(), "127.0.0.1:0", &args).await;
+    let addr = coord.addr.clone();
+    let mut c = coord.sweeps().await;
+    // 2 x 3 = 6 grid points; rungs 5 and 10 (reduction 2): a generation of 2 costs
+    // 2x5 + 1x5 = 15 epochs, so 45 pay for the 3 generations that spend the grid.
+    let spec = "name = \"genetic\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\n\
+                w1 = { min = 2.0, max = 12.0, count = 2 }\nw2 = { values = [-10.0, -6.0, -2.0] }\n\
+                agents_per_cell = 4\nepochs = 10\ncheckpoint_every = 1\nseed = 9\n\
+                eval = { robots = 2, seconds = 1.0 }\n\
+                [search]\nmethod = \"genetic\"\npopulation = 2\nmin_epochs = 5\nreduction = 2\nbudget_epochs = 45\n";
+    let sweep = create(&mut c, spec.to_string()).await;
+    assert_eq!(sweep.cells_total, 2, "generation 0 only");
+    let mut a = start_worker(tmp.path(), &coord.url(), "a");
+    let db = coord.db().await;
+    wait_for("generation 1 to be queued", SWEEP_TIMEOUT, || {
+        let db = db.clone();
+        async move {
+            let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM cells WHERE w1_index = 1")
+                .fetch_one(&db)
+                .await
+                .ok()?;
+            (n >= 2).then_some(())
+        }
+    })
+    .await;
+    a.kill();
+    db.close().await;
+    coord.proc.kill();
+    let coord = Coord::start(tmp.path(), &addr, &args).await;
+    let b = start_worker(tmp.path(), &coord.url(), "b");
+    let done = wait_done(
+        &coord,
+        sweep.sweep_id,
+        SWEEP_TIMEOUT,
+        &[&coord.proc, &a, &b],
+    )
+    .await;
+    assert_eq!(
+        (done.state, done.cells_total),
+        (pb::SweepState::Done as i32, 6),
+        "3 generations of 2 grid points"
+    );
+    let db = coord.db().await;
+    let cells: Vec<(i64, i64, i64, f64, f64, String, i64)> = sqlx::query_as(
+        "SELECT id, w1_index, w2_index, w1, w2, state, epochs_done FROM cells ORDER BY w1_index, w2_index",
+    )
+    .fetch_all(&db)
+    .await
+    .unwrap();
+    let keys: Vec<(i64, i64)> = cells.iter().map(|c| (c.1, c.2)).collect();
+    assert_eq!(keys, vec![(0, 0), (0, 1), (1, 0), (1, 1), (2, 0), (2, 1)]);
+    let points: std::collections::BTreeSet<(u64, u64)> = cells
+        .iter()
+        .map(|c| (c.3.to_bits(), c.4.to_bits()))
+        .collect();
+    let grid: std::collections::BTreeSet<(u64, u64)> = [2.0f64, 12.0]
+        .iter()
+        .flat_map(|&w1| [-10.0f64, -6.0, -2.0].map(|w2| (w1.to_bits(), w2.to_bits())))
+        .collect();
+    assert_eq!(points, grid, "every grid point trained once: {cells:?}");
+    // Each generation: one candidate continued to the end, one stopped at the rung.
+    let decisions: Vec<(i64, i64, String)> =
+        sqlx::query_as("SELECT cell_id, rung, decision FROM rung_decisions ORDER BY cell_id")
+            .fetch_all(&db)
+            .await
+            .unwrap();
+    assert_eq!(decisions.len(), 6, "one decision per cell: {decisions:?}");
+    assert!(decisions.iter().all(|d| d.1 == 0));
+    for g in 0..3 {
+        let states: Vec<&str> = cells
+            .iter()
+            .filter(|c| c.1 == g)
+            .map(|c| c.5.as_str())
+            .collect();
+        let mut sorted = states.clone();
+        sorted.sort();
+        assert_eq!(sorted, vec!["done", "stopped"], "generation {g}: {cells:?}");
+    }
+    let trained: i64 = cells.iter().map(|c| c.6).sum();
+    assert_eq!(trained, 45);
+    let best: i64 = sqlx::query_scalar(
+        "SELECT s.cell_id FROM scores s ORDER BY s.score DESC, s.cell_id LIMIT 1",
+    )
+    .fetch_one(&db)
+    .await
+    .unwrap();
+    assert_eq!(promoted_cell(&db, sweep.sweep_id).await, best);
+
+    let text = show(&coord, sweep.sweep_id);
+    assert!(text.contains("generation"), "show output: {text}");
+    let out = tmp.path().join("report");
+    let run = std::process::Command::new(bin("coordinator"))
+        .args([
+            "report",
+            &sweep.sweep_id.to_string(),
+            "--no-gif",
+            "--data-dir",
+        ])
+        .arg(&coord.data)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "coordinator report: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    assert!(
+        html.contains("genetic algorithm"),
+        "report: {}",
+        tail(&html, 2000)
+    );
+    assert!(out.join("candidates_flat.png").exists());
+}
+
 /// Item 5 of the search issue on real processes: a full grid recorded with `eval.every`
 /// exports as a search-bench recording, and the bench replays it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

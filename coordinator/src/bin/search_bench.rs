@@ -8,7 +8,7 @@
 use anyhow::{bail, Context};
 use clap::{Parser, Subcommand};
 use gaitsweep_coordinator::searchbench::{
-    self, AshaSetup, CmaesSetup, RecordedPoint, RecordedRun, Recording, Summary,
+    self, AshaSetup, EvolutionSetup, RecordedPoint, RecordedRun, Recording, Summary,
 };
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -58,13 +58,13 @@ enum Cmd {
         /// Reduction factor of successive halving.
         #[arg(long, default_value_t = 3)]
         reduction: u32,
-        /// CMA-ES candidates per generation.
+        /// Candidates per generation of CMA-ES and the genetic algorithm.
         #[arg(long, default_value_t = 6)]
         population: usize,
         /// CMA-ES initial step, a fraction of each axis' range.
         #[arg(long, default_value_t = 0.3)]
         sigma: f64,
-        /// CMA-ES epoch budget as a fraction of the grid's.
+        /// Epoch budget of CMA-ES and the genetic algorithm, a fraction of the grid's.
         #[arg(long, default_value_t = 1.0 / 3.0)]
         budget_fraction: f64,
     },
@@ -115,7 +115,8 @@ async fn main() -> anyhow::Result<()> {
                 workers,
             };
             let rungs = searchbench::asha_rungs(&rec, &asha).map_err(anyhow::Error::msg)?;
-            let cmaes = CmaesSetup {
+            let cmaes = EvolutionSetup {
+                genetic: false,
                 population,
                 sigma,
                 budget_fraction,
@@ -123,9 +124,17 @@ async fn main() -> anyhow::Result<()> {
             };
             // The same search with successive halving inside each generation, at ASHA's
             // rungs.
-            let halved = CmaesSetup {
+            let halved = EvolutionSetup {
                 halving: Some(asha),
                 ..cmaes
+            };
+            let ga = EvolutionSetup {
+                genetic: true,
+                ..cmaes
+            };
+            let ga_halved = EvolutionSetup {
+                genetic: true,
+                ..halved
             };
             let (best_point, best) = rec.best();
             let runs: usize = rec.points.iter().map(|p| p.runs.len()).sum();
@@ -149,8 +158,10 @@ async fn main() -> anyhow::Result<()> {
                 .map_err(anyhow::Error::msg)?;
             // A CMA-ES setting whose budget pays for no generation (a small grid, a large
             // population) gets a row that says so; the other strategies still print.
-            let c = replay_all(&|seed| searchbench::replay_cmaes(&rec, &cmaes, seed));
-            let h = replay_all(&|seed| searchbench::replay_cmaes(&rec, &halved, seed));
+            let c = replay_all(&|seed| searchbench::replay_evolution(&rec, &cmaes, seed));
+            let h = replay_all(&|seed| searchbench::replay_evolution(&rec, &halved, seed));
+            let gc = replay_all(&|seed| searchbench::replay_evolution(&rec, &ga, seed));
+            let gh = replay_all(&|seed| searchbench::replay_evolution(&rec, &ga_halved, seed));
             println!(
                 "{:<58} {:>8} {:>8} {:>12} {:>10} {:>12} {:>10}",
                 "strategy", "replays", "epochs", "mean regret", "max regret", "P(best)", "P(<= 5%)"
@@ -182,6 +193,16 @@ async fn main() -> anyhow::Result<()> {
                         "cma-es pop {population} + halving at asha's rungs, budget {budget_fraction:.3}"
                     ),
                     h.map(|h| searchbench::summarise(&h)),
+                ),
+                (
+                    format!("genetic pop {population}, budget {budget_fraction:.3}"),
+                    gc.map(|g| searchbench::summarise(&g)),
+                ),
+                (
+                    format!(
+                        "genetic pop {population} + halving at asha's rungs, budget {budget_fraction:.3}"
+                    ),
+                    gh.map(|g| searchbench::summarise(&g)),
                 ),
             ] {
                 let s = match s {

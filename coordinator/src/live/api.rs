@@ -76,11 +76,7 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
             let running = s.state == gaitsweep_core::SweepState::Running;
             let secs = (now - s.created_unix_ms).max(1) as f64 / 1000.0;
             let rate = (running && epochs_done > 0).then(|| epochs_done as f64 / secs);
-            let search = match s.spec.search {
-                gaitsweep_core::Search::Grid => "grid",
-                gaitsweep_core::Search::Asha { .. } => "asha",
-                gaitsweep_core::Search::Cmaes { .. } => "cmaes",
-            };
+            let search = s.spec.search.method();
             SweepSummary {
                 id: s.id.0,
                 name: s.spec.name.clone(),
@@ -174,7 +170,7 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
         .map(|s| s.epochs);
     Ok(Json(json!({
         "id": data.sweep_id,
-        "search": if data.evolution.is_some() { "cmaes" } else { "grid" },
+        "search": data.search,
         "name": data.name,
         "robot": data.robot,
         "state": data.state,

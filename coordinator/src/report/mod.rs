@@ -121,6 +121,8 @@ pub struct ReportData {
     /// (`([w1_lo, w2_lo], [w1_hi, w2_hi])`): its cells are candidates (`w1_index` =
     /// generation), not grid points, and the report draws them instead of grid pictures.
     pub evolution: Option<([f64; 2], [f64; 2])>,
+    /// The search method as a spec writes it (`grid`, `asha`, `cmaes`, `genetic`).
+    pub search: String,
     /// What the sweep was given to spend: robots, epochs, search, seeds, evaluation.
     pub budget: String,
 }
@@ -294,6 +296,13 @@ pub fn budget_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
             generations,
             ..
         } => format!("CMA-ES, {generations} generations of {population} candidates"),
+        Search::Genetic {
+            population,
+            generations,
+            ..
+        } => format!(
+            "a genetic algorithm over the grid's points, up to {generations} generations of {population} candidates"
+        ),
     };
     let ppo = if spec.ppo_overrides.is_empty() {
         String::new()
@@ -336,8 +345,8 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> 
         w2_values: spec.w2_values.clone(),
         cells: Vec::new(),
         promotions: Vec::new(),
-        evolution: matches!(spec.search, gaitsweep_core::Search::Cmaes { .. })
-            .then(|| spec.bounds()),
+        evolution: spec.search.generations().map(|_| spec.bounds()),
+        search: spec.search.method().to_string(),
         budget: budget_text(&spec),
     };
 

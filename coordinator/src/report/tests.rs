@@ -83,6 +83,7 @@ fn synthetic() -> ReportData {
         cells,
         promotions: vec![],
         evolution: None,
+        search: "grid".into(),
         budget: "64 robots per cell".into(),
     }
 }

@@ -8,7 +8,7 @@ use super::sql::{
     cell_tx, end_winning_attempt, finish_if_done, refuse_closed, require_uploaded, Tx,
 };
 use super::ResultOutcome;
-use crate::evolution::{self, EvolutionParams, NextStep};
+use crate::evolution::{self, EvolutionParams, NextStep, Optimizer};
 use crate::{asha, Error, Result};
 use gaitsweep_core::records::RungDecisionRecord;
 use gaitsweep_core::spec::CellPlan;
@@ -110,7 +110,7 @@ pub(super) async fn apply_asha(
     // decided once none of the generation trains): the next generation waits for the whole
     // one anyway, and the budget buys generations at synchronous halving's cost, which
     // asynchronous promotion could overrun.
-    let generations = matches!(spec.search, Search::Cmaes { .. });
+    let generations = spec.search.generations().is_some();
     let states: Vec<(i64, String, i64)> =
         sqlx::query_as("SELECT id, state, w1_index FROM cells WHERE sweep_id = $1 ORDER BY id")
             .bind(sweep.0)
@@ -243,20 +243,27 @@ pub(super) async fn record_periodic_eval(
 
 /// The evolutionary search's parameters for a spec, or `None` for other searches.
 pub(super) fn evolution_params(spec: &ResolvedSpec) -> Option<EvolutionParams> {
-    let Search::Cmaes {
-        population,
-        sigma,
-        generations,
-        ..
-    } = spec.search
-    else {
-        return None;
+    let (population, generations) = spec.search.generations()?;
+    let optimizer = match spec.search {
+        Search::Cmaes { sigma, .. } => Optimizer::Cmaes { sigma },
+        _ => {
+            let sorted = |v: &[f64]| {
+                let mut v = v.to_vec();
+                v.sort_by(f64::total_cmp);
+                v.dedup();
+                v
+            };
+            Optimizer::Genetic {
+                w1: sorted(&spec.w1_values),
+                w2: sorted(&spec.w2_values),
+            }
+        }
     };
     let (lo, hi) = spec.bounds();
     Some(EvolutionParams {
         bounds: evolution::Bounds { lo, hi },
         population: population as usize,
-        sigma,
+        optimizer,
         generations,
         seed: spec.seed,
     })
@@ -293,7 +300,7 @@ pub(super) async fn insert_cells(
 /// The first generation of an evolutionary search.
 pub(super) fn first_generation(spec: &ResolvedSpec) -> Result<Vec<[f64; 2]>> {
     let params = evolution_params(spec)
-        .ok_or_else(|| Error::BadRequest("the spec's search is not cmaes".into()))?;
+        .ok_or_else(|| Error::BadRequest("the spec's search is not evolutionary".into()))?;
     match evolution::next_step(&params, &[]).map_err(Error::BadRequest)? {
         NextStep::Generation(c) => Ok(c),
         NextStep::Done(why) => Err(Error::BadRequest(format!(
