@@ -71,6 +71,8 @@ pub struct ReportCell {
     pub checkpoint: Option<String>,
     /// Learning curves: metric name -> (epoch, value), epochs ascending.
     pub curves: BTreeMap<String, Vec<(u32, f64)>>,
+    /// Its deepest successive-halving rung evaluation (epoch, gait score), if any.
+    pub rung: Option<(u32, f64)>,
 }
 
 impl ReportCell {
@@ -376,7 +378,22 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> 
             score: c.score,
             checkpoint,
             curves: BTreeMap::new(),
+            rung: None,
         });
+    }
+    let rungs: Vec<(i64, i64, f64)> = sqlx::query_as(
+        "SELECT e.cell_id, e.epoch, e.score FROM evaluations e JOIN cells c ON c.id = e.cell_id \
+         WHERE c.sweep_id = $1 AND e.kind = 'rung' ORDER BY e.epoch",
+    )
+    .bind(sweep)
+    .fetch_all(db)
+    .await?;
+    let mut deepest: BTreeMap<i64, (u32, f64)> = BTreeMap::new();
+    for (cell, epoch, score) in rungs {
+        deepest.insert(cell, (epoch as u32, score));
+    }
+    for c in &mut data.cells {
+        c.rung = deepest.get(&c.id).copied();
     }
 
     let names = CURVE_METRICS.map(|n| format!("'{n}'")).join(", ");

@@ -66,6 +66,7 @@ fn synthetic() -> ReportData {
                     score: s,
                     checkpoint: Some(format!("checkpoints/{id}.safetensors")),
                     curves,
+                    rung: None,
                 });
                 id += 1;
             }
@@ -491,4 +492,23 @@ fn an_evolutionary_search_is_drawn_as_its_candidates() {
     );
     let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
     assert!(html.contains("candidates_flat.png") && html.contains("curves_flat.png"));
+}
+
+#[test]
+fn a_stopped_cell_shows_its_rung_and_its_score_there() {
+    let mut d = synthetic();
+    let c = d
+        .cells
+        .iter_mut()
+        .find(|c| c.terrain_index == 0 && c.score.as_ref().is_some_and(|s| s.score.is_finite()))
+        .unwrap();
+    c.score = None;
+    c.state = "stopped".into();
+    c.rung = Some((400, 0.8654));
+    let dir = tempfile::tempdir().unwrap();
+    write_report(&d, dir.path(), &GifStatus::NotMade("x".into())).unwrap();
+    assert_svg(
+        &dir.path().join("score_flat.svg"),
+        &["stopped at 400", "0.865"],
+    );
 }

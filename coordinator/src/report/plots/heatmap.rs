@@ -161,10 +161,22 @@ impl Figure for Heatmap<'_> {
                     ShapeStyle::from(&WHITE).stroke_width(1),
                 )))?;
                 let ink = if luminance(fill) < 0.5 { WHITE } else { BLACK };
-                let style = TextStyle::from((SANS, font).into_font())
+                // A note may have two lines ("stopped at 400" over its rung score); a long
+                // line gets a smaller font so that it stays inside its cell.
+                let lines: Vec<&str> = text.lines().collect();
+                let longest = lines.iter().map(|l| l.chars().count()).max().unwrap_or(1);
+                let size = font.min(cell_w * 0.9 / (0.6 * longest as f64)).max(9.0);
+                let style = TextStyle::from((SANS, size).into_font())
                     .color(&ink)
                     .pos(Pos::new(HPos::Center, VPos::Center));
-                chart.draw_series(std::iter::once(Text::new(text, at(j, i), style)))?;
+                let n = lines.len();
+                for (k, line) in lines.into_iter().enumerate() {
+                    let dy = ((k as f64 - (n as f64 - 1.0) / 2.0) * size * 1.2) as i32;
+                    chart.draw_series(std::iter::once(
+                        EmptyElement::at(at(j, i))
+                            + Text::new(line.to_string(), (0, dy), style.clone()),
+                    ))?;
+                }
             }
         }
         for &(i, j) in &self.marks {
@@ -217,11 +229,14 @@ impl Figure for Heatmap<'_> {
             } else {
                 7
             })
+            // plotters right-aligns right-axis labels to a width it estimates, which comes out
+            // narrower than the rendered text for labels of 5 or more characters ("0.880"):
+            // their first digit went under the bar. A leading space takes the difference.
             .y_label_formatter(&|v| {
                 if integer {
-                    format!("{}", v.round() as i64)
+                    format!(" {}", v.round() as i64)
                 } else {
-                    fmt_tick(*v, hi - lo)
+                    format!(" {}", fmt_tick(*v, hi - lo))
                 }
             })
             .y_desc(self.bar_label.clone())

@@ -219,10 +219,11 @@ fn component(c: &ReportCell, name: &str) -> Option<f64> {
 
 fn notes(d: &ReportData, t: usize) -> Vec<Vec<String>> {
     d.grid(t, String::new(), |c| {
-        if c.score.is_some() {
-            "NaN".into()
-        } else {
-            c.state.clone()
+        match (&c.score, c.state.as_str(), c.rung) {
+            (Some(_), _, _) => "NaN".into(),
+            // A cell successive halving stopped: where, and its gait score there.
+            (None, "stopped", Some((epoch, score))) => format!("stopped at {epoch}\n{score:.3}"),
+            _ => c.state.clone(),
         }
     })
 }
