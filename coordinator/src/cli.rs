@@ -389,7 +389,7 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         .map(|b| (b.terrain_index, b.w1_index, b.w2_index));
     let evolutionary = matches!(spec.search_method.as_str(), "cmaes" | "genetic");
     if evolutionary {
-        render_candidates(&mut o, cells, replicates, best_point);
+        render_candidates(&mut o, &spec.search_method, cells, replicates, best_point);
     }
     for (ti, terrain) in spec.terrains.iter().enumerate().filter(|_| !evolutionary) {
         let point = |i: usize, j: usize| -> Vec<&pb::Cell> {
@@ -497,6 +497,7 @@ fn point_text(here: &[&pb::Cell], replicates: u32, mark: &str) -> String {
 /// (mean ± 95% CI over replicates) / fall rate or the state; `*` marks the promoted one.
 fn render_candidates(
     o: &mut String,
+    method: &str,
     cells: &[pb::Cell],
     replicates: u32,
     best: Option<(u32, u32, u32)>,
@@ -507,7 +508,12 @@ fn render_candidates(
     points.dedup();
     let _ = writeln!(
         o,
-        "\nevolutionary search (cma-es): {} candidates in {} generations; score{} / fall rate of its evaluation",
+        "\nevolutionary search ({}): {} candidates in {} generations; score{} / fall rate of its evaluation",
+        if method == "genetic" {
+            "genetic algorithm"
+        } else {
+            "cma-es"
+        },
         points.len(),
         points.last().map_or(0, |p| p.0 + 1),
         if replicates > 1 { " (mean ± 95% CI)" } else { "" }

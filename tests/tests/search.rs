@@ -423,7 +423,10 @@ async fn genetic_breeds_grid_points_generation_after_generation_across_a_restart
     assert_eq!(promoted_cell(&db, sweep.sweep_id).await, best);
 
     let text = show(&coord, sweep.sweep_id);
-    assert!(text.contains("generation"), "show output: {text}");
+    assert!(
+        text.contains("evolutionary search (genetic algorithm)"),
+        "show output: {text}"
+    );
     let out = tmp.path().join("report");
     let run = std::process::Command::new(bin("coordinator"))
         .args([
