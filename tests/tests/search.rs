@@ -230,22 +230,16 @@ async fn asha_survives_a_killed_worker_and_a_restarted_coordinator_between_rungs
     assert_eq!(metrics, 40);
 }
 
-/// The evolutionary search end to end: CMA-ES proposes each generation once the last one
-/// has ended; a worker killed and the coordinator restarted between two generations lose
-/// nothing and ask for no generation twice; the best candidate is promoted.
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn cmaes_trains_generation_after_generation_across_a_restart() {
-    let _g = heavy();
+/// An evolutionary sweep of `spec` on real processes, interrupted once: generation 0 trains
+/// on a worker until generation 1 is queued, then that worker and the coordinator are killed
+/// and a new coordinator on the same data dir finishes the sweep with a new worker. Returns
+/// the temp dir, the live coordinator, the sweep as created and as finished.
+async fn run_across_a_restart(spec: &str) -> (tempfile::TempDir, Coord, pb::Sweep, pb::Sweep) {
     let tmp = tempfile::tempdir().unwrap();
     let args = ["--lease-seconds", "2"];
     let mut coord = Coord::start(tmp.path(), "127.0.0.1:0", &args).await;
     let addr = coord.addr.clone();
     let mut c = coord.sweeps().await;
-    let spec = "name = \"cmaes\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\n\
-                w1 = { min = 2.0, max = 12.0, count = 2 }\nw2 = { values = [-10.0, -2.0] }\n\
-                agents_per_cell = 4\nepochs = 10\ncheckpoint_every = 1\nseed = 5\n\
-                eval = { robots = 2, seconds = 1.0 }\n\
-                [search]\nmethod = \"cmaes\"\npopulation = 2\nbudget_epochs = 60\n";
     let sweep = create(&mut c, spec.to_string()).await;
     assert_eq!(sweep.cells_total, 2, "generation 0 only");
     let mut a = start_worker(tmp.path(), &coord.url(), "a");
@@ -273,6 +267,21 @@ async fn cmaes_trains_generation_after_generation_across_a_restart() {
         &[&coord.proc, &a, &b],
     )
     .await;
+    (tmp, coord, sweep, done)
+}
+
+/// The evolutionary search end to end: CMA-ES proposes each generation once the last one
+/// has ended; a worker killed and the coordinator restarted between two generations lose
+/// nothing and ask for no generation twice; the best candidate is promoted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cmaes_trains_generation_after_generation_across_a_restart() {
+    let _g = heavy();
+    let spec = "name = \"cmaes\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\n\
+                w1 = { min = 2.0, max = 12.0, count = 2 }\nw2 = { values = [-10.0, -2.0] }\n\
+                agents_per_cell = 4\nepochs = 10\ncheckpoint_every = 1\nseed = 5\n\
+                eval = { robots = 2, seconds = 1.0 }\n\
+                [search]\nmethod = \"cmaes\"\npopulation = 2\nbudget_epochs = 60\n";
+    let (_tmp, coord, sweep, done) = run_across_a_restart(spec).await;
     assert_eq!(
         (done.state, done.cells_total, done.cells_done),
         (pb::SweepState::Done as i32, 6, 6),
@@ -332,45 +341,12 @@ async fn cmaes_trains_generation_after_generation_across_a_restart() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn genetic_breeds_grid_points_generation_after_generation_across_a_restart() {
     let _g = heavy();
-    let tmp = tempfile::tempdir().unwrap();
-    let args = ["--lease-seconds", "2"];
-    let mut coord = Coord::start(tmp.path(), "127.0.0.1:0", &args).await;
-    let addr = coord.addr.clone();
-    let mut c = coord.sweeps().await;
-    // 2 x 3 = 6 grid points; rungs 5 and 10 (reduction 2): a generation of 2 costs
-    // 2x5 + 1x5 = 15 epochs, so 45 pay for the 3 generations that spend the grid.
     let spec = "name = \"genetic\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\n\
                 w1 = { min = 2.0, max = 12.0, count = 2 }\nw2 = { values = [-10.0, -6.0, -2.0] }\n\
                 agents_per_cell = 4\nepochs = 10\ncheckpoint_every = 1\nseed = 9\n\
                 eval = { robots = 2, seconds = 1.0 }\n\
                 [search]\nmethod = \"genetic\"\npopulation = 2\nmin_epochs = 5\nreduction = 2\nbudget_epochs = 45\n";
-    let sweep = create(&mut c, spec.to_string()).await;
-    assert_eq!(sweep.cells_total, 2, "generation 0 only");
-    let mut a = start_worker(tmp.path(), &coord.url(), "a");
-    let db = coord.db().await;
-    wait_for("generation 1 to be queued", SWEEP_TIMEOUT, || {
-        let db = db.clone();
-        async move {
-            let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM cells WHERE w1_index = 1")
-                .fetch_one(&db)
-                .await
-                .ok()?;
-            (n >= 2).then_some(())
-        }
-    })
-    .await;
-    a.kill();
-    db.close().await;
-    coord.proc.kill();
-    let coord = Coord::start(tmp.path(), &addr, &args).await;
-    let b = start_worker(tmp.path(), &coord.url(), "b");
-    let done = wait_done(
-        &coord,
-        sweep.sweep_id,
-        SWEEP_TIMEOUT,
-        &[&coord.proc, &a, &b],
-    )
-    .await;
+    let (tmp, coord, sweep, done) = run_across_a_restart(spec).await;
     assert_eq!(
         (done.state, done.cells_total),
         (pb::SweepState::Done as i32, 6),
