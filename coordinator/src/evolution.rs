@@ -54,6 +54,23 @@ pub enum Optimizer {
     },
 }
 
+impl Optimizer {
+    /// The genetic algorithm over the grid of these axis values, each sorted ascending
+    /// with repeats removed (a spec's `values` may come in any order).
+    pub fn genetic(w1: &[f64], w2: &[f64]) -> Self {
+        let sorted = |v: &[f64]| {
+            let mut v = v.to_vec();
+            v.sort_by(f64::total_cmp);
+            v.dedup();
+            v
+        };
+        Optimizer::Genetic {
+            w1: sorted(w1),
+            w2: sorted(w2),
+        }
+    }
+}
+
 /// What the search needs besides the scores.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EvolutionParams {

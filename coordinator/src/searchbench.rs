@@ -394,15 +394,7 @@ pub fn replay_evolution(rec: &Recording, s: &EvolutionSetup, seed: u64) -> Resul
         },
         population: s.population,
         optimizer: if s.genetic {
-            let sorted = |v: &[f64]| {
-                let mut v = v.to_vec();
-                v.sort_by(f64::total_cmp);
-                v
-            };
-            Optimizer::Genetic {
-                w1: sorted(&rec.w1_values),
-                w2: sorted(&rec.w2_values),
-            }
+            Optimizer::genetic(&rec.w1_values, &rec.w2_values)
         } else {
             Optimizer::Cmaes { sigma: s.sigma }
         },

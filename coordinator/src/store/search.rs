@@ -246,18 +246,7 @@ pub(super) fn evolution_params(spec: &ResolvedSpec) -> Option<EvolutionParams> {
     let (population, generations) = spec.search.generations()?;
     let optimizer = match spec.search {
         Search::Cmaes { sigma, .. } => Optimizer::Cmaes { sigma },
-        _ => {
-            let sorted = |v: &[f64]| {
-                let mut v = v.to_vec();
-                v.sort_by(f64::total_cmp);
-                v.dedup();
-                v
-            };
-            Optimizer::Genetic {
-                w1: sorted(&spec.w1_values),
-                w2: sorted(&spec.w2_values),
-            }
-        }
+        _ => Optimizer::genetic(&spec.w1_values, &spec.w2_values),
     };
     let (lo, hi) = spec.bounds();
     Some(EvolutionParams {
