@@ -221,8 +221,11 @@ fn notes(d: &ReportData, t: usize) -> Vec<Vec<String>> {
     d.grid(t, String::new(), |c| {
         match (&c.score, c.state.as_str(), c.rung) {
             (Some(_), _, _) => "NaN".into(),
-            // A cell successive halving stopped: where, and its gait score there.
-            (None, "stopped", Some((epoch, score))) => format!("stopped at {epoch}\n{score:.3}"),
+            // A cell successive halving stopped: where, and its gait score there (named, as the
+            // same note stands on the fall-rate and component maps).
+            (None, "stopped", Some((epoch, score))) => {
+                format!("stopped at {epoch}\nscore {score:.3}")
+            }
             _ => c.state.clone(),
         }
     })
