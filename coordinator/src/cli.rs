@@ -346,7 +346,7 @@ fn cell_state(s: i32) -> &'static str {
 /// The replicates of one grid point summarised: the scores' mean with its 95% confidence
 /// interval and the mean fall rate, over the replicates that have a score.
 fn point_summary(cells: &[&pb::Cell]) -> Option<(gaitsweep_core::stats::Summary, f64)> {
-    let scored: Vec<pb::GaitScore> = cells.iter().filter_map(|c| c.score).collect();
+    let scored: Vec<pb::GaitScore> = cells.iter().filter_map(|c| c.score.clone()).collect();
     let scores: Vec<f64> = scored.iter().map(|x| x.score).collect();
     let stats = gaitsweep_core::stats::Summary::of(&scores)?;
     let fall = scored.iter().map(|x| x.fall_rate).sum::<f64>() / scored.len() as f64;
@@ -466,13 +466,34 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                 b.terrain,
                 b.w1,
                 b.w2,
-                b.score.map_or(f64::NAN, |x| x.score),
-                b.score.map_or(f64::NAN, |x| 100.0 * x.fall_rate),
-                b.score.map_or(f64::NAN, |x| x.mean_vel_error)
+                b.score.as_ref().map_or(f64::NAN, |x| x.score),
+                b.score.as_ref().map_or(f64::NAN, |x| 100.0 * x.fall_rate),
+                b.score.as_ref().map_or(f64::NAN, |x| x.mean_vel_error)
             );
+            if let Some(sc) = &b.score {
+                let _ = writeln!(o, "{}", levels_line(sc));
+            }
         }
     }
     o
+}
+
+/// A score's levels and overspeed in one line: `by level: 0 0.912/0% · 3 0.804/2%;
+/// overspeed 0.031 m/s`.
+pub fn levels_line(s: &pb::GaitScore) -> String {
+    let by: Vec<String> = s
+        .levels
+        .iter()
+        .filter_map(|l| {
+            let x = l.score.as_ref()?;
+            Some(format!("level {} {:.4}/{:.0}%", l.level, x.score, 100.0 * x.fall_rate))
+        })
+        .collect();
+    format!(
+        "  by level (score / fall rate): {}; overspeed {:.3} m/s (mean speed above the command)",
+        if by.is_empty() { "-".to_string() } else { by.join(" · ") },
+        s.overspeed
+    )
 }
 
 /// One point's cell text: score (mean ± 95% CI with replicates) / fall rate and `mark`,

@@ -9,23 +9,21 @@ use std::collections::BTreeMap;
 /// Every component of a gait score must be a finite number: an infinite score would be
 /// promoted over every real one, a NaN one cannot be ranked.
 pub fn score(s: &GaitScore) -> Result<()> {
-    let fields = [
-        ("score", s.score),
-        ("track", s.track),
-        ("effort", s.effort),
-        ("tilt", s.tilt),
-        ("progress", s.progress),
-        ("fall_rate", s.fall_rate),
-        ("mean_vel_error", s.mean_vel_error),
-        ("mean_abs_torque", s.mean_abs_torque),
-        ("cost_of_transport", s.cost_of_transport),
-    ];
-    match fields.iter().find(|(_, v)| !v.is_finite()) {
-        Some((name, v)) => Err(Error::BadRequest(format!(
-            "score.{name} is {v}: every score component must be a finite number (the evaluation produced a non-finite value; the cell should be failed instead)"
-        ))),
-        None => Ok(()),
+    let levels = s.levels.iter().map(|l| (Some(l.level), &l.score));
+    for (level, g) in std::iter::once((None, s)).chain(levels) {
+        if let Some((name, v)) = g.components().into_iter().find(|(_, v)| !v.is_finite()) {
+            let at = level.map(|l| format!("levels[{l}].")).unwrap_or_default();
+            return Err(Error::BadRequest(format!(
+                "score.{at}{name} is {v}: every score component must be a finite number (the evaluation produced a non-finite value; the cell should be failed instead)"
+            )));
+        }
+        if let Some(l) = level.filter(|l| *l > 9) {
+            return Err(Error::BadRequest(format!(
+                "score.levels has level {l}: difficulty levels run from 0 to 9"
+            )));
+        }
     }
+    Ok(())
 }
 
 /// Epoch numbers run from 1 to the cell's epochs.
@@ -93,6 +91,7 @@ mod tests {
             mean_abs_torque: 3.0,
             cost_of_transport: 1.0,
             robots: 2,
+            ..Default::default()
         }
     }
 

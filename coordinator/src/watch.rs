@@ -127,12 +127,12 @@ impl WatchBars {
                     self.cells_done += 1;
                     // A done cell counts all its epochs.
                     self.epochs.insert(c.cell_id, self.epochs_per_cell);
-                    if let Some(s) = c.score.filter(|s| s.score.is_finite()) {
+                    if let Some(s) = c.score.as_ref().filter(|s| s.score.is_finite()) {
                         self.best = Some(self.best.map_or(s.score, |b| b.max(s.score)));
                     }
                 }
                 if let Some(b) = self.cells.remove(&c.cell_id) {
-                    let end = match (state, c.score) {
+                    let end = match (state, c.score.as_ref()) {
                         (pb::CellState::Done, Some(s)) => format!(
                             "{}: score {:.4}, fall rate {:.0}%",
                             cell_label(c),

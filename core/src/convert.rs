@@ -6,7 +6,7 @@ use crate::records::{
 };
 use crate::spec::{Axis, EvalSpec, ResolvedSpec, Search, SearchSpec, SweepSpec};
 use crate::{CellState, Error, Result, SweepState};
-use gaitsweep_model::GaitScore;
+use gaitsweep_model::{GaitScore, LevelScore};
 
 impl From<&Axis> for pb::Axis {
     fn from(a: &Axis) -> Self {
@@ -56,6 +56,8 @@ impl From<pb::SweepSpec> for SweepSpec {
                 robots: nonzero(s.eval_robots).map(|v| v as usize),
                 seconds: (s.eval_seconds != 0.0).then_some(s.eval_seconds),
                 every: nonzero(s.eval_every),
+                levels: (!s.eval_levels.is_empty()).then_some(s.eval_levels),
+                score: (!s.score.is_empty()).then_some(s.score),
             },
             search: (!s.search_method.is_empty()
                 || s.search_min_epochs != 0
@@ -113,6 +115,8 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
                 _ => 0.0,
             },
             search_budget_epochs: s.budget_epochs().unwrap_or(0),
+            eval_levels: s.eval_levels.iter().map(|l| u32::from(*l)).collect(),
+            score: s.score.to_string(),
         }
     }
 }
@@ -130,6 +134,17 @@ impl From<&GaitScore> for pb::GaitScore {
             mean_abs_torque: g.mean_abs_torque,
             cost_of_transport: g.cost_of_transport,
             robots: g.robots as u32,
+            progress_bounded: g.progress_bounded,
+            mean_speed: g.mean_speed,
+            overspeed: g.overspeed,
+            levels: g
+                .levels
+                .iter()
+                .map(|l| pb::LevelScore {
+                    level: u32::from(l.level),
+                    score: Some((&l.score).into()),
+                })
+                .collect(),
         }
     }
 }
@@ -147,6 +162,17 @@ impl From<&pb::GaitScore> for GaitScore {
             mean_abs_torque: g.mean_abs_torque,
             cost_of_transport: g.cost_of_transport,
             robots: g.robots as usize,
+            progress_bounded: g.progress_bounded,
+            mean_speed: g.mean_speed,
+            overspeed: g.overspeed,
+            levels: g
+                .levels
+                .iter()
+                .map(|l| LevelScore {
+                    level: l.level.min(u32::from(u8::MAX)) as u8,
+                    score: l.score.as_ref().map(GaitScore::from).unwrap_or_default(),
+                })
+                .collect(),
         }
     }
 }
@@ -230,6 +256,13 @@ pub fn cell_task(cell: &CellRecord, spec: &ResolvedSpec) -> pb::CellTask {
         eval_robots: spec.eval_robots as u32,
         eval_seconds: spec.eval_seconds,
         eval_every: spec.eval_every,
+        budget_epochs: spec.epochs,
+        eval_levels: spec
+            .eval_levels_for(&cell.terrain)
+            .into_iter()
+            .map(u32::from)
+            .collect(),
+        score: spec.score.to_string(),
     }
 }
 

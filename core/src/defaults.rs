@@ -3,11 +3,30 @@
 //! stored spec and the tasks sent to workers carry concrete values; `worker train` and
 //! `worker eval` use the same constants for their flags.
 
+use gaitsweep_model::TerrainKind;
+
 /// Robots of the evaluation rollout that gives the gait score.
 pub const EVAL_ROBOTS: usize = 64;
 
 /// Length of the evaluation rollout in seconds (the paper's 20 s episodes).
 pub const EVAL_SECONDS: f32 = 20.0;
+
+/// Difficulty levels a cell trained with the curriculum (rough, stairs, slopes) is
+/// evaluated at: its score is the mean over them, each level with `EVAL_ROBOTS` robots, so a
+/// score covers the terrain from easy to hard rather than one level.
+pub const EVAL_LEVELS: [u8; 4] = [0, 3, 5, 7];
+
+/// The levels a cell on `terrain` is evaluated at: flat ground has no levels (0); a
+/// terrain with a fixed training difficulty is evaluated at that difficulty; otherwise the
+/// spec's `eval.levels`, or [`EVAL_LEVELS`].
+pub fn eval_levels(terrain: TerrainKind, difficulty: Option<u8>, given: &[u8]) -> Vec<u8> {
+    match (terrain, difficulty) {
+        (TerrainKind::Flat, _) => vec![0],
+        (_, Some(d)) if given.is_empty() => vec![d],
+        _ if !given.is_empty() => given.to_vec(),
+        _ => EVAL_LEVELS.to_vec(),
+    }
+}
 
 /// Epochs between checkpoints when a spec does not say (resumption after a lost worker
 /// starts from the last one).
@@ -26,6 +45,14 @@ pub fn checkpoint_every(given: Option<u32>, epochs: u32) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn curriculum_terrains_are_scored_over_several_levels_and_flat_at_one() {
+        assert_eq!(eval_levels(TerrainKind::Rough, None, &[]), EVAL_LEVELS);
+        assert_eq!(eval_levels(TerrainKind::Stairs, None, &[2, 4]), [2, 4]);
+        assert_eq!(eval_levels(TerrainKind::Stairs, Some(3), &[]), [3]);
+        assert_eq!(eval_levels(TerrainKind::Flat, None, &[0, 3, 5, 7]), [0]);
+    }
 
     #[test]
     fn checkpoint_interval_is_never_zero() {

@@ -2,9 +2,13 @@
 //! expansion into cells.
 
 use crate::{defaults, Error, Result};
-use gaitsweep_model::TerrainKind;
+use gaitsweep_model::{ScoreVariant, TerrainKind};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+
+/// The level every cell of a sweep stored before per-level evaluation was scored at,
+/// unless it had a fixed difficulty (the trainer's `CURRICULUM_EVAL_DIFFICULTY`).
+pub const LEGACY_EVAL_LEVEL: u8 = 5;
 
 /// Most cells one sweep may have.
 pub const MAX_CELLS: usize = 100_000;
@@ -57,6 +61,15 @@ pub struct EvalSpec {
     /// and epoch in `evaluations`); unset or 0: only at the end and at rungs.
     #[serde(default)]
     pub every: Option<u32>,
+    /// Difficulty levels (0-9) every evaluation of a cell on rough, stairs or slopes runs
+    /// at; its score is the mean over them (unset: the fixed `difficulty` if given, else
+    /// [`crate::defaults::EVAL_LEVELS`]). Flat ground is evaluated at level 0.
+    #[serde(default)]
+    pub levels: Option<Vec<u32>>,
+    /// The score's progress term: "eq4" (the paper's, default) or "bounded" (each step's
+    /// displacement capped at its commanded distance).
+    #[serde(default)]
+    pub score: Option<String>,
 }
 
 /// How a sweep spends its epochs, as a user writes it (`[search]`).
@@ -309,6 +322,14 @@ pub struct ResolvedSpec {
     /// Intermediate evaluations every this many epochs (0: none).
     #[serde(default)]
     pub eval_every: u32,
+    /// Difficulty levels of every evaluation of a cell on rough, stairs or slopes (see
+    /// [`ResolvedSpec::eval_levels_for`]); empty in specs stored before per-level
+    /// evaluation, which were evaluated at one level.
+    #[serde(default)]
+    pub eval_levels: Vec<u8>,
+    /// The progress term of the score (specs stored before the option read as Eq. 4).
+    #[serde(default)]
+    pub score: ScoreVariant,
     /// Search strategy (specs stored before searches existed read as the grid).
     #[serde(default)]
     pub search: Search,
@@ -490,6 +511,35 @@ impl SweepSpec {
         if self.eval.robots == Some(0) {
             problems.push("eval.robots is 0: use at least 1".into());
         }
+        let eval_levels: Vec<u8> = match &self.eval.levels {
+            Some(l) if l.is_empty() => {
+                problems.push("eval.levels is empty: list at least one level, e.g. [0, 3, 5, 7]".into());
+                vec![]
+            }
+            Some(l) => {
+                if let Some(bad) = l.iter().find(|v| **v > 9) {
+                    problems.push(format!("eval.levels has {bad}: levels run from 0 to 9"));
+                }
+                let mut seen = l.clone();
+                seen.sort_unstable();
+                seen.dedup();
+                if seen.len() != l.len() {
+                    problems.push(format!("eval.levels {l:?} lists a level twice"));
+                }
+                l.iter().map(|v| (*v).min(9) as u8).collect()
+            }
+            None => match self.difficulty {
+                Some(d) => vec![d.min(9) as u8],
+                None => defaults::EVAL_LEVELS.to_vec(),
+            },
+        };
+        let score = match self.eval.score.as_deref().unwrap_or("").parse::<ScoreVariant>() {
+            Ok(v) => v,
+            Err(e) => {
+                problems.push(format!("eval.{e}"));
+                ScoreVariant::Eq4
+            }
+        };
         for (k, v) in &self.ppo {
             if !v.is_finite() {
                 problems.push(format!("ppo.{k} is not a finite number"));
@@ -581,6 +631,8 @@ impl SweepSpec {
             eval_robots: self.eval.robots.unwrap_or(defaults::EVAL_ROBOTS),
             eval_seconds: self.eval.seconds.unwrap_or(defaults::EVAL_SECONDS),
             eval_every: self.eval.every.unwrap_or(0),
+            eval_levels,
+            score,
             search,
         })
     }
@@ -708,6 +760,19 @@ impl SweepSpec {
 }
 
 impl ResolvedSpec {
+    /// The difficulty levels a cell on `terrain` is evaluated at: 0 on flat ground (which
+    /// has no levels), the spec's `eval_levels` elsewhere; a spec stored before per-level
+    /// evaluation keeps the one level it was scored at (its difficulty, else 5).
+    pub fn eval_levels_for(&self, terrain: &str) -> Vec<u8> {
+        if self.eval_levels.is_empty() {
+            return vec![self.difficulty.unwrap_or(LEGACY_EVAL_LEVEL)];
+        }
+        match terrain.parse::<TerrainKind>() {
+            Ok(TerrainKind::Flat) => vec![0],
+            _ => self.eval_levels.clone(),
+        }
+    }
+
     /// Fills values that specs stored by earlier versions left at 0 ("the worker's
     /// default"), so every spec read back carries concrete values.
     pub fn with_defaults(mut self) -> Self {
@@ -1198,6 +1263,44 @@ mod tests {
         assert_eq!(cells[6].terrain_index, 1);
         let seeds: std::collections::BTreeSet<u64> = cells.iter().map(|c| c.seed).collect();
         assert_eq!(seeds.len(), 12);
+    }
+
+    #[test]
+    fn a_score_covers_the_evaluation_levels_the_spec_resolves() {
+        let base = "robot = \"anymal\"\nterrains = [\"flat\", \"rough\", \"stairs\"]\nagents_per_cell = 4\n\
+                    epochs = 10\nw1 = { values = [2.0] }\nw2 = { values = [-6.0] }\n";
+        let r = SweepSpec::from_toml(base).unwrap().resolve_with(ok).unwrap();
+        assert_eq!(r.eval_levels, crate::defaults::EVAL_LEVELS);
+        assert_eq!(r.eval_levels_for("flat"), [0]);
+        assert_eq!(r.eval_levels_for("stairs"), [0, 3, 5, 7]);
+        assert_eq!(r.score, ScoreVariant::Eq4);
+        let given = format!("{base}eval = {{ levels = [2, 6], score = \"bounded\" }}\n");
+        let r = SweepSpec::from_toml(&given).unwrap().resolve_with(ok).unwrap();
+        assert_eq!((r.eval_levels_for("rough"), r.score), (vec![2, 6], ScoreVariant::Bounded));
+        let fixed = format!("difficulty = 4\n{base}");
+        let r = SweepSpec::from_toml(&fixed).unwrap().resolve_with(ok).unwrap();
+        assert_eq!(r.eval_levels_for("rough"), [4]);
+        // The task a worker gets carries the levels of its cell's terrain and the variant.
+        let json = serde_json::to_value(&r).unwrap();
+        let back: ResolvedSpec = serde_json::from_value(json.clone()).unwrap();
+        assert_eq!(back, r);
+        // A spec stored before per-level evaluation keeps its one level.
+        let mut old = json;
+        old.as_object_mut().unwrap().remove("eval_levels");
+        old.as_object_mut().unwrap().remove("score");
+        old["difficulty"] = serde_json::Value::Null;
+        let old: ResolvedSpec = serde_json::from_value(old).unwrap();
+        assert_eq!(old.eval_levels_for("rough"), [LEGACY_EVAL_LEVEL]);
+        assert_eq!(old.score, ScoreVariant::Eq4);
+        let bad = format!("{base}eval = {{ levels = [3, 12, 3], score = \"fast\" }}\n");
+        let Err(Error::InvalidSpec(p)) = SweepSpec::from_toml(&bad).unwrap().resolve_with(ok)
+        else {
+            panic!("accepted {bad}")
+        };
+        let all = p.join("\n");
+        for needle in ["eval.levels has 12", "lists a level twice", "eval.score \"fast\""] {
+            assert!(all.contains(needle), "{needle} not in {all}");
+        }
     }
 
     #[test]

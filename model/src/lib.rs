@@ -10,5 +10,5 @@ pub mod terrain;
 
 pub use error::{Error, Result};
 pub use preset::{GridSpec, PpoConfig, PresetFile};
-pub use score::GaitScore;
+pub use score::{GaitScore, LevelScore, ScoreVariant};
 pub use terrain::TerrainKind;

@@ -391,6 +391,15 @@ pub struct PpoConfig {
     /// `final_noise_std` at epoch `noise_decay_start + noise_decay_epochs`.
     #[serde(default)]
     pub noise_decay_start: usize,
+    /// `noise_decay_start` as a fraction of the cell's epoch budget (0: unset), so that
+    /// the schedule scales with the budget a sweep gives its cells; resolved to epochs
+    /// when a cell starts ([`PpoConfig::resolve_schedule`]). Not with `noise_decay_start`.
+    #[serde(default)]
+    pub noise_decay_start_fraction: f64,
+    /// The epoch the annealing reaches `final_noise_std`, as a fraction of the cell's epoch
+    /// budget (0: unset); with it `noise_decay_epochs` is resolved from the budget too.
+    #[serde(default)]
+    pub noise_decay_end_fraction: f64,
     /// Weight of rsl_rl's symmetry mirror loss (0: off, rsl_rl's default): the mean squared
     /// difference between the action mean for the mirrored observation and the mirrored
     /// action mean, added to the PPO loss, so the policy learns left and right alike. Needs
@@ -427,6 +436,8 @@ impl Default for PpoConfig {
             final_noise_std: 0.0,
             noise_decay_epochs: 0,
             noise_decay_start: 0,
+            noise_decay_start_fraction: 0.0,
+            noise_decay_end_fraction: 0.0,
             mirror_loss_coef: 0.0,
             mirror_augmentation: false,
         }
@@ -471,6 +482,13 @@ impl PpoConfig {
                 "noise_decay_start" => {
                     self.noise_decay_start = whole_from(0.0, "expected a whole number >= 0")?
                 }
+                "noise_decay_start_fraction" | "noise_decay_end_fraction"
+                    if !(0.0..=1.0).contains(&v) =>
+                {
+                    return Err(bad("expected a fraction of the epoch budget in [0, 1]"))
+                }
+                "noise_decay_start_fraction" => self.noise_decay_start_fraction = v,
+                "noise_decay_end_fraction" => self.noise_decay_end_fraction = v,
                 "mirror_loss_coef" if v >= 0.0 => self.mirror_loss_coef = v,
                 "mirror_loss_coef" => return Err(bad("expected a value >= 0")),
                 "mirror_augmentation" => self.mirror_augmentation = v != 0.0,
@@ -480,11 +498,49 @@ impl PpoConfig {
                          value_loss_coef, entropy_coef, learning_rate, desired_kl, adaptive_lr, \
                          max_grad_norm, num_learning_epochs, num_mini_batches, steps_per_env, \
                          clip_value_loss, final_noise_std, noise_decay_epochs, noise_decay_start, \
+                         noise_decay_start_fraction, noise_decay_end_fraction, \
                          mirror_loss_coef, mirror_augmentation",
                     ))
                 }
             }
         }
+        Ok(())
+    }
+
+    /// Turns a schedule given as fractions of the epoch budget into epochs for a cell of
+    /// `budget` epochs: the std is learned to `start_fraction * budget` and reaches
+    /// `final_noise_std` at `end_fraction * budget`. A schedule given in epochs is kept
+    /// as it is; one given both ways, or whose fractions do not rise, is an error.
+    pub fn resolve_schedule(&mut self, budget: u32) -> Result<()> {
+        let (start, end) = (self.noise_decay_start_fraction, self.noise_decay_end_fraction);
+        if start == 0.0 && end == 0.0 {
+            return Ok(());
+        }
+        let bad = |what: String| Err(Error::InvalidArgument(what));
+        if self.noise_decay_start != 0 || self.noise_decay_epochs != 0 {
+            return bad(format!(
+                "the noise schedule is given both in epochs (noise_decay_start = {}, \
+                 noise_decay_epochs = {}) and as fractions ({start}, {end}): set one or the other",
+                self.noise_decay_start, self.noise_decay_epochs
+            ));
+        }
+        if !(0.0..=1.0).contains(&start) || !(start..=1.0).contains(&end) || end == 0.0 {
+            return bad(format!(
+                "noise_decay_start_fraction = {start} and noise_decay_end_fraction = {end}: \
+                 need 0 <= start <= end <= 1 with end > 0"
+            ));
+        }
+        if self.final_noise_std <= 0.0 {
+            return bad(format!(
+                "noise_decay_end_fraction = {end} anneals nothing without final_noise_std > 0 \
+                 (set both, or neither)"
+            ));
+        }
+        let at = |f: f64| (f * f64::from(budget)).round() as usize;
+        self.noise_decay_start = at(start);
+        self.noise_decay_epochs = at(end).saturating_sub(at(start));
+        self.noise_decay_start_fraction = 0.0;
+        self.noise_decay_end_fraction = 0.0;
         Ok(())
     }
 }
@@ -761,5 +817,55 @@ fn merge(base: &mut toml::Table, top: toml::Table) {
                 base.insert(k, v);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod schedule_tests {
+    use super::*;
+
+    fn annealed(start: f64, end: f64) -> PpoConfig {
+        PpoConfig {
+            final_noise_std: 0.05,
+            noise_decay_start_fraction: start,
+            noise_decay_end_fraction: end,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn fractions_scale_with_the_budget() {
+        for (budget, start, epochs) in [(1000, 400, 300), (3000, 1200, 900), (200, 80, 60)] {
+            let mut p = annealed(0.4, 0.7);
+            p.resolve_schedule(budget).unwrap();
+            assert_eq!((p.noise_decay_start, p.noise_decay_epochs), (start, epochs));
+            assert_eq!((p.noise_decay_start_fraction, p.noise_decay_end_fraction), (0.0, 0.0));
+        }
+    }
+
+    #[test]
+    fn a_schedule_in_epochs_is_kept_and_mixing_both_is_refused() {
+        let mut p = PpoConfig {
+            final_noise_std: 0.05,
+            noise_decay_start: 400,
+            noise_decay_epochs: 300,
+            ..Default::default()
+        };
+        p.resolve_schedule(3000).unwrap();
+        assert_eq!((p.noise_decay_start, p.noise_decay_epochs), (400, 300));
+        p.noise_decay_end_fraction = 0.7;
+        let e = p.resolve_schedule(3000).unwrap_err().to_string();
+        assert!(e.contains("one or the other"), "{e}");
+    }
+
+    #[test]
+    fn falling_fractions_and_fractions_without_a_final_std_are_refused() {
+        assert!(annealed(0.7, 0.4).resolve_schedule(1000).is_err());
+        let mut p = annealed(0.4, 0.7);
+        p.final_noise_std = 0.0;
+        assert!(p.resolve_schedule(1000).unwrap_err().to_string().contains("final_noise_std"));
+        let mut o = BTreeMap::new();
+        o.insert("noise_decay_end_fraction".to_string(), 1.5);
+        assert!(PpoConfig::default().apply_overrides(&o).is_err());
     }
 }

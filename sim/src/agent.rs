@@ -359,6 +359,7 @@ impl Agent {
                 power: power / dec,
                 gravity_xy: [grav_b.x, grav_b.y],
                 displacement: [base.pos.x - self.last_pos[0], base.pos.y - self.last_pos[1]],
+                dt,
             },
             p.reward.tracking_sigma,
             ctl.torque_limit,

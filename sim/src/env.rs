@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::preset::Preset;
 use crate::reward::{GridWeights, TERM_NAMES};
 use crate::robot::RobotWorld;
-use crate::score::{self, GaitScore};
+use crate::score::{self, GaitScore, ScoreVariant};
 use crate::terrain::{curriculum_update, TerrainKind, TerrainSet, TerrainUse};
 use crate::urdf::RobotModel;
 
@@ -381,8 +381,8 @@ impl VecEnv {
 
     /// Scores of episodes that ended since the last reset, plus the running episodes of
     /// frozen (evaluated) robots; used by the evaluation.
-    pub fn gait_score(&self) -> GaitScore {
-        score::summarize(&self.finished, self.mass, u64::from(self.max_steps))
+    pub fn gait_score(&self, variant: ScoreVariant) -> GaitScore {
+        score::summarize(&self.finished, self.mass, u64::from(self.max_steps), variant)
     }
 
     /// Robot mass (kg).

@@ -24,5 +24,5 @@ pub use eval::{evaluate, EvalConfig};
 pub use gaitsweep_model as model;
 pub use mirror::Mirror;
 pub use preset::{GridSpec, PpoConfig, Preset};
-pub use score::GaitScore;
+pub use score::{GaitScore, LevelScore, ScoreVariant};
 pub use terrain::TerrainKind;

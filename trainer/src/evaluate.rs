@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use gaitsweep_sim::{evaluate, EvalConfig, GaitScore, Preset, TerrainKind};
+use gaitsweep_sim::{evaluate, EvalConfig, GaitScore, Preset, ScoreVariant, TerrainKind};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -69,8 +69,11 @@ pub fn check_dims(
 pub struct EvalOptions {
     /// Terrain (default: the checkpoint's).
     pub terrain: Option<TerrainKind>,
-    /// Difficulty 0..=9 (default: the checkpoint's fixed difficulty, else the scoring level).
-    pub difficulty: Option<u8>,
+    /// Difficulty levels 0..=9, the score the mean over them (empty: the checkpoint's
+    /// fixed difficulty, else [`CURRICULUM_EVAL_DIFFICULTY`]).
+    pub levels: Vec<u8>,
+    /// The progress term of the composite score.
+    pub score: ScoreVariant,
     /// Robots, one episode each.
     pub robots: usize,
     /// Episode length (s).
@@ -95,15 +98,23 @@ pub fn eval(path: &Path, a: &EvalOptions) -> Result<GaitScore> {
         None => meta.terrain.parse::<TerrainKind>()?,
     };
     check_dims(path, &meta, &preset, terrain)?;
+    if let Some(l) = a.levels.iter().find(|l| **l > 9) {
+        return Err(Error::Config(format!(
+            "evaluation level {l} is out of range: use 0 to 9"
+        )));
+    }
+    let levels = if a.levels.is_empty() {
+        vec![meta.difficulty.unwrap_or(CURRICULUM_EVAL_DIFFICULTY)]
+    } else {
+        a.levels.clone()
+    };
     let cfg = EvalConfig {
         terrain,
-        difficulty: a
-            .difficulty
-            .or(meta.difficulty)
-            .unwrap_or(CURRICULUM_EVAL_DIFFICULTY),
+        levels,
         num_robots: a.robots,
         episode_seconds: a.seconds,
         seed: a.seed.unwrap_or(EVAL_SEED),
+        score: a.score,
     };
     score_policy(&preset, meta.w1, meta.w2, &cfg, &ppo, a.noise)
 }

@@ -5,7 +5,9 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use gaitsweep_sim::{EnvConfig, EvalConfig, GaitScore, PpoConfig, Preset, TerrainKind, VecEnv};
+use gaitsweep_sim::{
+    EnvConfig, EvalConfig, GaitScore, PpoConfig, Preset, ScoreVariant, TerrainKind, VecEnv,
+};
 use serde::{Deserialize, Serialize};
 
 use crate::checkpoint::{self, Checkpoint, CheckpointMeta, NormalizerMeta, OptimizerMeta, RngMeta};
@@ -13,7 +15,9 @@ use crate::export::ControlInfo;
 use crate::ppo::{runner::boundary_seed, EpochStats, Ppo, PpoParams, Runner, StepView, VecEnvLike};
 use crate::{Error, Result};
 
-/// Difficulty at which a curriculum-trained cell is evaluated (the middle of 0..=9).
+/// Difficulty at which a curriculum-trained cell was evaluated before evaluations covered
+/// several levels (the middle of 0..=9): the level of `worker eval` on a checkpoint when no
+/// level is given, and of sweeps stored before per-level evaluation.
 pub const CURRICULUM_EVAL_DIFFICULTY: u8 = 5;
 
 /// Seed of every evaluation rollout: the same spawns and command schedule for every cell
@@ -37,6 +41,10 @@ pub struct CellRunConfig {
     pub agents: usize,
     /// Total epochs (a resumed run continues counting from its checkpoint).
     pub epochs: u32,
+    /// The cell's whole epoch budget, which schedules given as fractions
+    /// (`noise_decay_start_fraction`, ...) are fractions of: the sweep's epochs, also when
+    /// successive halving trains the cell to an earlier rung first (0: `epochs`).
+    pub budget_epochs: u32,
     /// Seed of the run.
     pub seed: u64,
     /// Where the networks live.
@@ -49,8 +57,12 @@ pub struct CellRunConfig {
     pub resume_from: Option<PathBuf>,
     /// PPO hyperparameters replacing the preset's (`learning_rate = 3e-4`, ...).
     pub ppo_overrides: BTreeMap<String, f64>,
-    /// Robots of the final evaluation.
+    /// Robots of the final evaluation, at each level.
     pub eval_robots: usize,
+    /// Difficulty levels of every evaluation; the score is the mean over them.
+    pub eval_levels: Vec<u8>,
+    /// The progress term of the composite score.
+    pub score: ScoreVariant,
     /// Episode length of the final evaluation (s).
     pub eval_seconds: f32,
     /// Evaluate the deterministic policy every this many epochs as well and log it as
@@ -176,6 +188,12 @@ fn validate(cfg: &CellRunConfig, p: &PpoParams) -> Result<()> {
     if cfg.checkpoint_every == 0 {
         return bad("checkpoint_every must be at least 1".into());
     }
+    if let Some(l) = cfg.eval_levels.iter().find(|l| **l > 9) {
+        return bad(format!("evaluation level {l} is out of range: use 0 to 9"));
+    }
+    if cfg.eval_levels.is_empty() {
+        return bad("the evaluation needs at least one difficulty level".into());
+    }
     if cfg.eval_robots == 0 || !(cfg.eval_seconds.is_finite() && cfg.eval_seconds > 0.0) {
         return bad(format!(
             "the evaluation needs at least 1 robot and a positive length, got {} robots x {} s",
@@ -264,10 +282,11 @@ fn eval_policy(
 ) -> Result<GaitScore> {
     let ecfg = EvalConfig {
         terrain: cfg.terrain,
-        difficulty: cfg.difficulty.unwrap_or(CURRICULUM_EVAL_DIFFICULTY),
+        levels: cfg.eval_levels.clone(),
         num_robots: robots,
         episode_seconds: cfg.eval_seconds,
         seed: EVAL_SEED,
+        score: cfg.score,
     };
     crate::evaluate::score_policy(preset, cfg.w1, cfg.w2, &ecfg, ppo, 0.0)
 }
@@ -294,6 +313,12 @@ pub fn train_cell_with(
     let preset = Preset::load(&cfg.robot)?.on_terrain(cfg.terrain)?;
     let mut pcfg = preset.ppo.clone();
     pcfg.apply_overrides(&cfg.ppo_overrides)?;
+    let budget = if cfg.budget_epochs == 0 {
+        cfg.epochs
+    } else {
+        cfg.budget_epochs
+    };
+    pcfg.resolve_schedule(budget)?;
     let params = ppo_params(&pcfg);
     validate(cfg, &params)?;
     std::fs::create_dir_all(&cfg.out_dir)
@@ -405,19 +430,9 @@ pub fn train_cell_with(
                 // The final evaluation is this one when the last epoch lands here.
                 last_eval = Some((runner.epoch, s.clone()));
             }
-            for (k, v) in [
-                ("score", s.score),
-                ("track", s.track),
-                ("effort", s.effort),
-                ("tilt", s.tilt),
-                ("progress", s.progress),
-                ("fall_rate", s.fall_rate),
-                ("mean_vel_error", s.mean_vel_error),
-                ("robots", s.robots as f64),
-                ("seconds", te.elapsed().as_secs_f64()),
-            ] {
-                m.values.insert(format!("eval/{k}"), v);
-            }
+            m.values.extend(s.eval_metrics());
+            m.values
+                .insert("eval/seconds".into(), te.elapsed().as_secs_f64());
         }
         observer.on_epoch(&m);
         if runner.epoch % cfg.checkpoint_every == 0 || runner.epoch == cfg.epochs {

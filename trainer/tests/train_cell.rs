@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use gaitsweep_sim::TerrainKind;
+use gaitsweep_sim::{ScoreVariant, TerrainKind};
 use gaitsweep_trainer::checkpoint::Checkpoint;
 use gaitsweep_trainer::evaluate::{eval, EvalOptions};
 use gaitsweep_trainer::train::{train_cell, CellRunConfig, EpochMetrics, TrainObserver};
@@ -38,6 +38,7 @@ fn cfg(out: &Path, epochs: u32, resume: Option<PathBuf>) -> CellRunConfig {
         w2: -6.0,
         agents: 6,
         epochs,
+        budget_epochs: 0,
         seed: 3,
         device: tch::Device::Cpu,
         checkpoint_every: 2,
@@ -49,6 +50,8 @@ fn cfg(out: &Path, epochs: u32, resume: Option<PathBuf>) -> CellRunConfig {
             .collect::<BTreeMap<_, _>>(),
         eval_robots: 2,
         eval_seconds: 1.0,
+        eval_levels: vec![0],
+        score: ScoreVariant::Eq4,
         eval_every: 0,
     }
 }
@@ -114,7 +117,8 @@ fn train_cell_on_simulator_and_resume() {
     let ckpt = out.final_checkpoint.clone();
     let eval_args = EvalOptions {
         terrain: None,
-        difficulty: None,
+        levels: vec![],
+        score: ScoreVariant::Eq4,
         robots: 2,
         seconds: 1.0,
         seed: None,
@@ -337,4 +341,34 @@ fn mirrored_samples_make_the_policy_more_symmetric() {
         tail(&aug) < 0.7 * tail(&plain),
         "mirrored samples did not make the policy more symmetric: {aug:?} against {plain:?}"
     );
+}
+
+/// A cell on rough ground is scored at each of its evaluation levels, the score their mean,
+/// each level's own score kept (and logged as `eval/level/<L>/*` metrics).
+#[test]
+fn a_rough_cell_is_scored_as_the_mean_over_its_evaluation_levels() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut c = cfg(&dir.path().join("rough"), 1, None);
+    c.terrain = TerrainKind::Rough;
+    c.difficulty = None;
+    c.eval_levels = vec![0, 7];
+    c.eval_every = 1;
+    let mut obs = Collect::default();
+    let out = train_cell(&c, &mut obs).unwrap();
+    let s = &out.score;
+    assert_eq!(s.levels.iter().map(|l| l.level).collect::<Vec<_>>(), [0, 7]);
+    let mean = (s.levels[0].score.score + s.levels[1].score.score) / 2.0;
+    assert!((s.score - mean).abs() < 1e-12, "{s:?}");
+    assert_eq!(s.robots, 4);
+    let m = &obs.epochs[0].values;
+    assert_eq!(m["eval/level/7/score"], s.levels[1].score.score);
+    assert_eq!(m["eval/score"], s.score);
+    // The bounded variant scores the same rollout with the capped progress term.
+    c.eval_levels = vec![7];
+    c.score = ScoreVariant::Bounded;
+    c.out_dir = dir.path().join("bounded");
+    let b = train_cell(&c, &mut Collect::default()).unwrap().score;
+    let l7 = &s.levels[1].score;
+    assert!((b.progress - l7.progress).abs() < 1e-12 && b.progress_bounded <= b.progress + 1e-12);
+    assert!((b.score - (l7.score - l7.progress + l7.progress_bounded)).abs() < 1e-9, "{b:?} vs {l7:?}");
 }

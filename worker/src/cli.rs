@@ -88,6 +88,14 @@ pub struct TrainArgs {
     /// Episode length of the evaluations (s).
     #[arg(long, default_value_t = gaitsweep_core::defaults::EVAL_SECONDS)]
     pub eval_seconds: f32,
+    /// Difficulty levels of the evaluations, comma-separated; the score is the mean over
+    /// them (default: 0 on flat, the fixed --difficulty, else 0,3,5,7).
+    #[arg(long, value_delimiter = ',')]
+    pub eval_levels: Vec<u8>,
+    /// The score's progress term: eq4 (the paper's) or bounded (capped at the commanded
+    /// distance).
+    #[arg(long, default_value = "eq4")]
+    pub score: gaitsweep_sim::ScoreVariant,
     /// libtorch threads (default 1).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -186,6 +194,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         w2: a.w2,
         agents: a.agents.unwrap_or(preset.grid.agents_per_cell),
         epochs: a.epochs.unwrap_or(preset.grid.epochs),
+        budget_epochs: 0,
         seed: a.seed,
         device: parse_device(&a.device)?,
         checkpoint_every: a.checkpoint_every,
@@ -194,6 +203,12 @@ pub fn train(a: TrainArgs) -> Result<()> {
         ppo_overrides: parse_overrides(&a.set)?,
         eval_robots: a.eval_robots,
         eval_seconds: a.eval_seconds,
+        eval_levels: gaitsweep_core::defaults::eval_levels(
+            a.terrain,
+            a.difficulty,
+            &a.eval_levels,
+        ),
+        score: a.score,
         eval_every: a.eval_every.unwrap_or(0),
     };
     let start = match &cfg.resume_from {
@@ -210,10 +225,16 @@ pub fn train(a: TrainArgs) -> Result<()> {
     obs.bar.finish();
     let s = &outcome.score;
     println!(
-        "score {:.4} (track {:.3}, effort {:.3}, tilt {:.3}, progress {:.3}); |v_cmd - v| {:.3} m/s, fall rate {:.3}; checkpoint {}",
-        s.score, s.track, s.effort, s.tilt, s.progress, s.mean_vel_error, s.fall_rate,
-        outcome.final_checkpoint.display()
+        "score {:.4} (track {:.3}, effort {:.3}, tilt {:.3}, progress {:.3}, bounded progress {:.3}); |v_cmd - v| {:.3} m/s, overspeed {:.3} m/s, fall rate {:.3}; checkpoint {}",
+        s.score, s.track, s.effort, s.tilt, s.progress, s.progress_bounded, s.mean_vel_error,
+        s.overspeed, s.fall_rate, outcome.final_checkpoint.display()
     );
+    for l in &s.levels {
+        println!(
+            "  level {}: score {:.4}, fall rate {:.3}, |v_cmd - v| {:.3} m/s, overspeed {:.3} m/s",
+            l.level, l.score.score, l.score.fall_rate, l.score.mean_vel_error, l.score.overspeed
+        );
+    }
     Ok(())
 }
 
@@ -280,6 +301,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     let params_on = |p: &Preset| -> Result<_> {
         let mut pcfg = p.ppo.clone();
         pcfg.apply_overrides(&overrides)?;
+        pcfg.resolve_schedule(a.epochs + 1)?;
         Ok(train::ppo_params(&pcfg))
     };
     let params = params_on(&preset)?;

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use gaitsweep_sim::{GaitScore, TerrainKind};
+use gaitsweep_sim::{GaitScore, ScoreVariant, TerrainKind};
 use gaitsweep_trainer::evaluate::EvalOptions;
 
 use crate::{Error, Result};
@@ -19,9 +19,15 @@ pub struct EvalArgs {
     /// Terrain (default: the one the checkpoint was trained on).
     #[arg(long)]
     pub terrain: Option<TerrainKind>,
-    /// Difficulty 0..=9 (default: the checkpoint's fixed difficulty, else the scoring level).
-    #[arg(long)]
-    pub difficulty: Option<u8>,
+    /// Difficulty levels 0..=9, comma-separated; the score is the mean over them and each
+    /// level's own is printed under `levels` (default: the checkpoint's fixed difficulty,
+    /// else 5). A sweep evaluates at the levels its spec resolved (`eval.levels`).
+    #[arg(long, alias = "difficulty", value_delimiter = ',')]
+    pub levels: Vec<u8>,
+    /// The score's progress term: eq4 (the paper's) or bounded (capped at the commanded
+    /// distance).
+    #[arg(long, default_value = "eq4")]
+    pub score: ScoreVariant,
     /// Robots, one episode each.
     #[arg(long, default_value_t = gaitsweep_core::defaults::EVAL_ROBOTS)]
     pub robots: usize,
@@ -43,7 +49,8 @@ pub fn eval(a: &EvalArgs) -> Result<GaitScore> {
         &a.checkpoint,
         &EvalOptions {
             terrain: a.terrain,
-            difficulty: a.difficulty,
+            levels: a.levels.clone(),
+            score: a.score,
             robots: a.robots,
             seconds: a.seconds,
             seed: a.seed,

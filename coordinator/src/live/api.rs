@@ -129,6 +129,13 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
                 "score": c.score.as_ref().map(|s| s.score),
                 "fall_rate": c.score.as_ref().map(|s| s.fall_rate),
                 "mean_vel_error": c.score.as_ref().map(|s| s.mean_vel_error),
+                "overspeed": c.score.as_ref().map(|s| s.overspeed).filter(|v| v.is_finite()),
+                "levels": c.score.as_ref().map(|s| s.levels.iter().map(|l| json!({
+                    "level": l.level,
+                    "score": l.score.score,
+                    "fall_rate": l.score.fall_rate,
+                    "mean_vel_error": l.score.mean_vel_error,
+                })).collect::<Vec<_>>()).unwrap_or_default(),
                 "mean_return": last("mean_return"),
                 "last_error": c.last_error,
             })

@@ -60,7 +60,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         o,
         "<p>Robot <b>{}</b>, terrains <b>{}</b>{}, state <b>{}</b>: {} of {} cells scored. \
          Grid: w1 (velocity-tracking weight) = {}; w2 (log10 of the torque-penalty weight) = {}. \
-         The gait score is J = mean(track \u{2212} effort \u{2212} tilt) + progress (higher is better).</p>\n\
+         The gait score is J = mean(track \u{2212} effort \u{2212} tilt) + progress (higher is better), averaged over the evaluation's levels.</p>\n\
          <p>Budget: {}.</p>\n",
         esc(&d.robot),
         esc(&terrains),
@@ -97,6 +97,27 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
                 num(s.mean_vel_error),
                 d.sweep_id
             );
+            if !s.levels.is_empty() {
+                let by: Vec<String> = s
+                    .levels
+                    .iter()
+                    .map(|l| {
+                        format!(
+                            "level {}: score {}, fall rate {}, |v_cmd \u{2212} v| {} m/s",
+                            l.level,
+                            num(l.score.score),
+                            num(l.score.fall_rate),
+                            num(l.score.mean_vel_error)
+                        )
+                    })
+                    .collect();
+                let _ = writeln!(
+                    o,
+                    "<p>By evaluation level: {}; overspeed {} m/s.</p>",
+                    esc(&by.join("; ")),
+                    num(s.overspeed)
+                );
+            }
             if d.terrains.len() > 1 {
                 o.push_str("<p>Best per terrain: ");
                 let per: Vec<String> = d
@@ -215,8 +236,8 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
     }
 
     o.push_str("<h2>Cells</h2>\n<table>\n<tr><th>cell</th><th>terrain</th><th>w1</th><th>w2</th><th>replicate</th><th>state</th><th>epochs</th><th>attempts</th>\
-                <th>score</th><th>track</th><th>effort</th><th>tilt</th><th>progress</th><th>fall rate</th><th>|v_cmd \u{2212} v|</th>\
-                <th>mean |\u{3c4}|</th><th>cost of transport</th><th>error</th></tr>\n");
+                <th>score</th><th>track</th><th>effort</th><th>tilt</th><th>progress</th><th>bounded progress</th><th>fall rate</th><th>|v_cmd \u{2212} v|</th>\
+                <th>overspeed (m/s)</th><th>mean |\u{3c4}|</th><th>cost of transport</th><th>by level: score / falls</th><th>error</th></tr>\n");
     let best_id = promoted.map(|c| c.id);
     for c in &d.cells {
         let class = if Some(c.id) == best_id {
@@ -245,15 +266,30 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
                     s.effort,
                     s.tilt,
                     s.progress,
+                    s.progress_bounded,
                     s.fall_rate,
                     s.mean_vel_error,
+                    s.overspeed,
                     s.mean_abs_torque,
                     s.cost_of_transport,
                 ] {
                     let _ = write!(o, "<td>{}</td>", num(v));
                 }
+                let levels: Vec<String> = s
+                    .levels
+                    .iter()
+                    .map(|l| {
+                        format!(
+                            "L{} {} / {:.0}%",
+                            l.level,
+                            num(l.score.score),
+                            100.0 * l.score.fall_rate
+                        )
+                    })
+                    .collect();
+                let _ = write!(o, "<td>{}</td>", esc(&levels.join(" \u{b7} ")));
             }
-            None => o.push_str(&"<td></td>".repeat(9)),
+            None => o.push_str(&"<td></td>".repeat(12)),
         }
         let _ = writeln!(
             o,
@@ -261,6 +297,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
             esc(c.last_error.as_deref().unwrap_or(""))
         );
     }
-    o.push_str("</table>\n<p>Every value comes from the coordinator's database (tables cells, scores, epoch_metrics, promotions).</p>\n</body></html>\n");
+    o.push_str("</table>\n<p>Every value comes from the coordinator's database (tables cells, scores, level_scores, epoch_metrics, promotions). \
+                Overspeed is the mean of max(0, |v| \u{2212} |v_cmd|): how much faster than commanded the robots ran, which Eq. 4's progress term pays for.</p>\n</body></html>\n");
     o
 }

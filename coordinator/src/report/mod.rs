@@ -318,13 +318,38 @@ pub fn budget_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
     };
     format!(
         "{} robots per cell, up to {} PPO epochs per cell ({search}), {} seed{} per grid point; \
-         evaluation: deterministic policy, {} robots x {} s{ppo}",
+         evaluation: {}{ppo}",
         spec.agents_per_cell,
         spec.epochs,
         spec.replicates,
         if spec.replicates == 1 { "" } else { "s" },
+        eval_text(spec),
+    )
+}
+
+/// What a sweep's score measures, in words: the rollout, the levels per terrain and the
+/// progress term.
+pub fn eval_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
+    let levels: Vec<String> = spec
+        .terrains
+        .iter()
+        .map(|t| {
+            let l = spec.eval_levels_for(&t.to_string());
+            let l: Vec<String> = l.iter().map(u8::to_string).collect();
+            format!("{t} at level{} {}", if l.len() == 1 { "" } else { "s" }, l.join(", "))
+        })
+        .collect();
+    format!(
+        "deterministic policy, {} robots x {} s at each level, {}; the score is the mean over the levels; \
+         progress term: {}",
         spec.eval_robots,
         spec.eval_seconds,
+        levels.join("; "),
+        match spec.score {
+            gaitsweep_model::ScoreVariant::Eq4 => "Eq. 4's (sum of squared step displacements)",
+            gaitsweep_model::ScoreVariant::Bounded =>
+                "bounded (each step's displacement capped at its commanded distance)",
+        }
     )
 }
 
@@ -380,6 +405,12 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> 
             curves: BTreeMap::new(),
             rung: None,
         });
+    }
+    let mut levels = crate::store::levels::final_levels(db, gaitsweep_core::SweepId(sweep)).await?;
+    for c in &mut data.cells {
+        if let (Some(s), Some(l)) = (c.score.as_mut(), levels.remove(&c.id)) {
+            s.levels = l;
+        }
     }
     let rungs: Vec<(i64, i64, f64)> = sqlx::query_as(
         "SELECT e.cell_id, e.epoch, e.score FROM evaluations e JOIN cells c ON c.id = e.cell_id \

@@ -20,6 +20,7 @@ fn score(v: f64) -> GaitScore {
         mean_abs_torque: 5.0,
         cost_of_transport: 1.2,
         robots: 4,
+        ..Default::default()
     }
 }
 
@@ -290,6 +291,8 @@ fn spec() -> ResolvedSpec {
         eval_robots: 0,
         eval_seconds: 0.0,
         eval_every: 0,
+        eval_levels: vec![],
+        score: Default::default(),
         search: Default::default(),
     }
 }

@@ -31,6 +31,12 @@ pub struct ScoreRow {
     pub cost_of_transport: Option<f64>,
     /// Robots evaluated.
     pub robots: Option<i64>,
+    /// Bounded progress term (NULL in scores stored before it existed).
+    pub progress_bounded: Option<f64>,
+    /// Mean speed.
+    pub mean_speed: Option<f64>,
+    /// Mean speed above the command.
+    pub overspeed: Option<f64>,
 }
 
 impl ScoreRow {
@@ -48,6 +54,10 @@ impl ScoreRow {
             mean_abs_torque: v(self.mean_abs_torque),
             cost_of_transport: v(self.cost_of_transport),
             robots: self.robots.unwrap_or(0) as usize,
+            progress_bounded: v(self.progress_bounded),
+            mean_speed: v(self.mean_speed),
+            overspeed: v(self.overspeed),
+            levels: vec![],
         })
     }
 }
@@ -97,7 +107,8 @@ pub const CELL_COLUMNS: &str =
     "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, \
      c.seed, c.replicate, c.state, c.attempts, c.epochs_done, c.target_epochs, c.last_error, \
      (SELECT d.score FROM rung_decisions d WHERE d.cell_id = c.id ORDER BY d.rung DESC LIMIT 1) AS rung_score, s.score, s.track, s.effort, s.tilt, \
-     s.progress, s.fall_rate, s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots";
+     s.progress, s.fall_rate, s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots, \
+     s.progress_bounded, s.mean_speed, s.overspeed";
 
 impl TryFrom<CellRow> for CellRecord {
     type Error = Error;

@@ -40,11 +40,14 @@ pub(super) async fn rung_result(
     require_uploaded(tx, final_sha256, epochs, "rung").await?;
     sqlx::query(
         "INSERT INTO evaluations (cell_id, epoch, kind, attempt_id, score, track, effort, tilt, progress, \
-         fall_rate, mean_vel_error, robots, reported_unix_ms) VALUES ($1, $2, 'rung', $3, $4, $5, $6, $7, $8, $9, $10, $11, $12) \
+         fall_rate, mean_vel_error, robots, reported_unix_ms, progress_bounded, mean_speed, overspeed) \
+         VALUES ($1, $2, 'rung', $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15) \
          ON CONFLICT (cell_id, epoch) DO UPDATE SET kind = 'rung', attempt_id = excluded.attempt_id, \
          score = excluded.score, track = excluded.track, effort = excluded.effort, tilt = excluded.tilt, \
          progress = excluded.progress, fall_rate = excluded.fall_rate, mean_vel_error = excluded.mean_vel_error, \
-         robots = excluded.robots, reported_unix_ms = excluded.reported_unix_ms",
+         robots = excluded.robots, reported_unix_ms = excluded.reported_unix_ms, \
+         progress_bounded = excluded.progress_bounded, mean_speed = excluded.mean_speed, \
+         overspeed = excluded.overspeed",
     )
     .bind(cell_id.0)
     .bind(i64::from(target))
@@ -58,8 +61,12 @@ pub(super) async fn rung_result(
     .bind(score.mean_vel_error)
     .bind(score.robots as i64)
     .bind(now_ms)
+    .bind(score.progress_bounded)
+    .bind(score.mean_speed)
+    .bind(score.overspeed)
     .execute(&mut **tx)
     .await?;
+    super::levels::write(tx, cell_id, lease, target, &score.levels).await?;
     end_winning_attempt(
         tx,
         lease,
@@ -215,13 +222,16 @@ pub(super) async fn record_periodic_eval(
     now_ms: i64,
 ) -> Result<()> {
     let v = |k: &str| values.get(&format!("eval/{k}")).copied();
-    sqlx::query(
+    let written = sqlx::query(
         "INSERT INTO evaluations (cell_id, epoch, kind, attempt_id, score, track, effort, tilt, progress, \
-         fall_rate, mean_vel_error, robots, reported_unix_ms) VALUES ($1, $2, 'periodic', $3, $4, $5, $6, $7, $8, $9, $10, $11, \
-         $12) ON CONFLICT (cell_id, epoch) DO UPDATE SET attempt_id = excluded.attempt_id, \
+         fall_rate, mean_vel_error, robots, reported_unix_ms, progress_bounded, mean_speed, overspeed) \
+         VALUES ($1, $2, 'periodic', $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15) \
+         ON CONFLICT (cell_id, epoch) DO UPDATE SET attempt_id = excluded.attempt_id, \
          score = excluded.score, track = excluded.track, effort = excluded.effort, tilt = excluded.tilt, \
          progress = excluded.progress, fall_rate = excluded.fall_rate, mean_vel_error = excluded.mean_vel_error, \
-         robots = excluded.robots, reported_unix_ms = excluded.reported_unix_ms \
+         robots = excluded.robots, reported_unix_ms = excluded.reported_unix_ms, \
+         progress_bounded = excluded.progress_bounded, mean_speed = excluded.mean_speed, \
+         overspeed = excluded.overspeed \
          WHERE evaluations.kind = 'periodic' AND evaluations.attempt_id <= excluded.attempt_id",
     )
     .bind(cell.0)
@@ -236,8 +246,18 @@ pub(super) async fn record_periodic_eval(
     .bind(v("mean_vel_error"))
     .bind(v("robots").map(|r| r as i64))
     .bind(now_ms)
+    .bind(v("progress_bounded"))
+    .bind(v("mean_speed"))
+    .bind(v("overspeed"))
     .execute(&mut **tx)
     .await?;
+    // The levels go with the evaluation's row: not over a rung's, nor an earlier attempt's
+    // over a later one's.
+    if written.rows_affected() > 0 {
+        if let Some(s) = GaitScore::from_eval_metrics(values) {
+            super::levels::write(tx, cell, lease, epoch, &s.levels).await?;
+        }
+    }
     Ok(())
 }
 

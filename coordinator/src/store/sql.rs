@@ -484,13 +484,20 @@ impl Store for SqlStore {
             "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 \
              ORDER BY c.terrain_index, c.w1_index, c.w2_index, c.replicate"
         );
-        sqlx::query(&sql)
+        let mut cells = sqlx::query(&sql)
             .bind(id.0)
             .fetch_all(&self.read)
             .await?
             .iter()
             .map(cell_from_row)
-            .collect()
+            .collect::<Result<Vec<_>>>()?;
+        let mut levels = super::levels::final_levels(&self.read, id).await?;
+        for c in &mut cells {
+            if let (Some(s), Some(l)) = (c.score.as_mut(), levels.remove(&c.id.0)) {
+                s.levels = l;
+            }
+        }
+        Ok(cells)
     }
 
     async fn cancel_sweep(&self, id: SweepId, now_ms: i64) -> Result<(SweepRecord, Vec<LeaseId>)> {
@@ -782,8 +789,9 @@ impl Store for SqlStore {
         require_uploaded(&mut tx, final_sha256, epochs, "final").await?;
         sqlx::query(
             "INSERT INTO scores (cell_id, attempt_id, score, track, effort, tilt, progress, fall_rate, mean_vel_error, \
-             mean_abs_torque, cost_of_transport, robots, epochs, final_checkpoint_sha256, reported_unix_ms) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15)",
+             mean_abs_torque, cost_of_transport, robots, epochs, final_checkpoint_sha256, reported_unix_ms, \
+             progress_bounded, mean_speed, overspeed) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16, $17, $18)",
         )
         .bind(cell_id.0)
         .bind(lease.0)
@@ -800,8 +808,12 @@ impl Store for SqlStore {
         .bind(epochs as i64)
         .bind(final_sha256)
         .bind(now_ms)
+        .bind(score.progress_bounded)
+        .bind(score.mean_speed)
+        .bind(score.overspeed)
         .execute(&mut *tx)
         .await?;
+        super::levels::write(&mut tx, cell_id, lease, epochs, &score.levels).await?;
         end_winning_attempt(
             &mut tx,
             lease,

@@ -7,7 +7,7 @@
 use super::*;
 use crate::Error;
 use gaitsweep_core::{CellState, SweepState};
-use gaitsweep_model::TerrainKind;
+use gaitsweep_model::{LevelScore, TerrainKind};
 
 fn spec(w1: usize, w2: usize, terrains: Vec<TerrainKind>) -> ResolvedSpec {
     ResolvedSpec {
@@ -26,6 +26,8 @@ fn spec(w1: usize, w2: usize, terrains: Vec<TerrainKind>) -> ResolvedSpec {
         eval_robots: 0,
         eval_seconds: 0.0,
         eval_every: 0,
+        eval_levels: vec![],
+        score: Default::default(),
         search: Default::default(),
     }
 }
@@ -42,7 +44,21 @@ fn score(s: f64) -> GaitScore {
         mean_abs_torque: 0.0,
         cost_of_transport: 0.0,
         robots: 2,
+        ..Default::default()
     }
+}
+
+/// A score evaluated at levels 0 and 7 (the mean of the two).
+fn score_at_levels(low: f64, high: f64) -> GaitScore {
+    let at = |level, s: f64| LevelScore {
+        level,
+        score: GaitScore {
+            fall_rate: if level == 7 { 0.5 } else { 0.0 },
+            overspeed: 0.1,
+            ..score(s)
+        },
+    };
+    GaitScore::mean_of_levels(vec![at(0, low), at(7, high)])
 }
 
 async fn setup() -> (tempfile::TempDir, SqlStore, WorkerId) {
@@ -880,6 +896,39 @@ async fn concurrent_reports_share_commits_and_a_bad_one_fails_alone() {
 
 /// Every SQL example of README's "Results in SQL" runs on the backend and returns rows,
 /// on a grid sweep with replicates, metrics, evaluations, checkpoints and promotions.
+async fn each_level_of_an_evaluation_is_stored() {
+    let (_d, store, w) = setup().await;
+    let mut sp = spec(1, 1, vec![TerrainKind::Rough]);
+    sp.eval_every = 1;
+    let sweep = store.create_sweep(&sp, 0).await.unwrap();
+    let g = store.lease_next(&w, 0, 1).await.unwrap().unwrap();
+    // A periodic evaluation arrives as metrics, the final one as the result.
+    let periodic = score_at_levels(0.2, 0.0).eval_metrics();
+    store.record_progress(g.lease, &[(1, periodic)]).await.unwrap();
+    let s = score_at_levels(0.9, 0.3);
+    store.report_result(g.lease, &s, 3, None, 2).await.unwrap();
+    let cells = store.cells(sweep.id).await.unwrap();
+    let got = cells[0].score.clone().unwrap();
+    assert!((got.score - 0.6).abs() < 1e-12);
+    assert_eq!(got.levels.len(), 2, "{got:?}");
+    assert_eq!((got.levels[1].level, got.levels[1].score.fall_rate), (7, 0.5));
+    assert!((got.overspeed - 0.1).abs() < 1e-12);
+    let rows: Vec<(i64, i64, f64)> =
+        sqlx::query_as("SELECT epoch, level, score FROM level_scores ORDER BY epoch, level")
+            .fetch_all(store.reader())
+            .await
+            .unwrap();
+    assert_eq!(rows, vec![(1, 0, 0.2), (1, 7, 0.0), (3, 0, 0.9), (3, 7, 0.3)]);
+    // A level outside 0-9 or a non-finite level score is refused, naming it.
+    let mut bad = score_at_levels(0.9, 0.3);
+    bad.levels[1].score.track = f64::NAN;
+    let g2 = store.create_sweep(&sp, 0).await.unwrap();
+    let lease = store.lease_next(&w, 0, 1).await.unwrap().unwrap();
+    assert_eq!(lease.cell.sweep_id, g2.id);
+    let e = store.report_result(lease.lease, &bad, 3, None, 2).await.unwrap_err();
+    assert!(e.to_string().contains("levels[7].track"), "{e}");
+}
+
 async fn the_readme_queries_run() {
     let (_d, store, w) = setup().await;
     let mut s = spec(2, 2, vec![TerrainKind::Flat]);
@@ -987,5 +1036,6 @@ conformance!(
     the_evolutionary_search_queues_a_generation_when_the_last_one_ends,
     cmaes_halves_inside_each_generation,
     concurrent_reports_share_commits_and_a_bad_one_fails_alone,
+    each_level_of_an_evaluation_is_stored,
     the_readme_queries_run,
 );

@@ -291,6 +291,7 @@ async fn run_lease<C: Coordinator>(ctx: &Ctx<C>, slot: u32, lease: pb::Lease) ->
         w2: cell.w2,
         agents: task.agents as usize,
         epochs: task.epochs,
+        budget_epochs: task.budget_epochs,
         seed: cell.seed,
         device: ctx.device,
         checkpoint_every: task.checkpoint_every,
@@ -299,6 +300,12 @@ async fn run_lease<C: Coordinator>(ctx: &Ctx<C>, slot: u32, lease: pb::Lease) ->
         ppo_overrides: task.ppo_overrides.clone(),
         eval_robots: task.eval_robots as usize,
         eval_seconds: task.eval_seconds,
+        eval_levels: gaitsweep_core::defaults::eval_levels(
+            terrain,
+            task.difficulty.map(|d| d.min(9) as u8),
+            &task.eval_levels.iter().map(|l| (*l).min(9) as u8).collect::<Vec<_>>(),
+        ),
+        score: task.score.parse().map_err(Error::Config)?,
         eval_every: task.eval_every,
     };
     let (tx, mut rx) = mpsc::unbounded_channel();
