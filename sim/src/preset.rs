@@ -333,7 +333,40 @@ mod tests {
         )
         .unwrap();
         assert_eq!(proof.commands.forward_speed, [0.0, 1.0]);
-        assert_eq!(proof.reward, a.reward);
+        // The demo's flat recipe: anymal's reward but for the heading weight.
+        assert_eq!((proof.reward.w3_heading, a.reward.w3_heading), (0.5, 6.0));
+        assert_eq!(
+            RewardConfig { w3_heading: 0.5, ..a.reward.clone() },
+            proof.reward
+        );
+        assert_eq!((proof.ppo.init_noise_std, proof.ppo.mirror_loss_coef), (0.3, 0.0));
+    }
+
+    /// Issue 39: a sweep's grids on different terrains must differ only in the ground. Every
+    /// shipped robot trains with the same PPO, reward and domain-randomisation settings on
+    /// every terrain (the height scan, on off flat ground, is the only difference legged_gym
+    /// makes), and its schedules scale with the cell's budget.
+    #[test]
+    fn a_cell_on_every_terrain_uses_the_same_recipe() {
+        for robot in gaitsweep_model::preset::available() {
+            let p = Preset::load(&robot).unwrap();
+            assert!(p.terrain.is_empty(), "{robot} has terrain tables: {:?}", p.terrain.keys());
+            for t in TerrainKind::ALL {
+                let on = p.on_terrain(t).unwrap();
+                assert_eq!(on.reward, p.reward, "{robot} on {t}: reward weights differ");
+                assert_eq!(on.ppo, p.ppo, "{robot} on {t}: ppo differs");
+                assert_eq!(on.domain_rand, p.domain_rand, "{robot} on {t}: domain_rand differs");
+            }
+            assert!(
+                p.ppo.noise_decay_start == 0 && p.ppo.noise_decay_epochs == 0,
+                "{robot}: the anneal must be given as fractions of the epoch budget"
+            );
+            let mut short = p.ppo.clone();
+            let mut long = p.ppo.clone();
+            short.resolve_schedule(600).unwrap();
+            long.resolve_schedule(3000).unwrap();
+            assert_eq!(long.noise_decay_start, 5 * short.noise_decay_start, "{robot}");
+        }
     }
 
     #[test]
@@ -375,7 +408,7 @@ mod tests {
         };
         write(
             "[terrain.stairs.ppo]\ninit_noise_std = 0.7\nnoise_decay_start = 40\n\
-             [terrain.stairs.domain_rand]\nadd_noise = false\n\
+             [terrain.stairs.domain_rand]\nadd_noise = true\n\
              [terrain.stairs.reward]\nw3_heading = 4.0",
         );
         let p = Preset::load_from_dir(dir.path()).unwrap();
@@ -384,8 +417,8 @@ mod tests {
             (stairs.ppo.init_noise_std, stairs.ppo.noise_decay_start),
             (0.7, 40)
         );
-        assert!(!stairs.domain_rand.add_noise && p.domain_rand.add_noise);
-        assert_eq!((stairs.reward.w3_heading, p.reward.w3_heading), (4.0, 0.5));
+        assert!(stairs.domain_rand.add_noise && !p.domain_rand.add_noise);
+        assert_eq!((stairs.reward.w3_heading, p.reward.w3_heading), (4.0, 6.0));
         assert_eq!(stairs.reward.lin_vel_z, p.reward.lin_vel_z);
         assert_eq!(stairs.ppo.num_learning_epochs, p.ppo.num_learning_epochs);
         assert_eq!(stairs.domain_rand.push_robots, p.domain_rand.push_robots);
