@@ -30,3 +30,7 @@ ALTER TABLE scores ADD COLUMN overspeed REAL;
 ALTER TABLE evaluations ADD COLUMN progress_bounded REAL;
 ALTER TABLE evaluations ADD COLUMN mean_speed REAL;
 ALTER TABLE evaluations ADD COLUMN overspeed REAL;
+-- The grid point best across a sweep's terrains (coordinator/src/across.rs) is promoted
+-- with terrain '*', its score the min over terrains of its mean / that terrain's best mean,
+-- and this half-width of the 95% interval of that value (NULL for other promotions).
+ALTER TABLE promotions ADD COLUMN ci95 REAL;

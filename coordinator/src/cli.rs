@@ -438,6 +438,9 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
             o.push('\n');
         }
     }
+    if !evolutionary && spec.terrains.len() > 1 {
+        let _ = writeln!(o, "{}", across_line(&spec, s, cells));
+    }
     if s.best_cell_id != 0 {
         if let Some(b) = cells.iter().find(|c| c.cell_id == s.best_cell_id) {
             if replicates > 1 {
@@ -476,6 +479,46 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         }
     }
     o
+}
+
+/// The grid point best across the sweep's terrains ([`gaitsweep_coordinator::across`]),
+/// in one line.
+fn across_line(spec: &pb::SweepSpec, s: &pb::Sweep, cells: &[pb::Cell]) -> String {
+    use gaitsweep_coordinator::across;
+    let scored: Vec<across::ScoredCell> = cells
+        .iter()
+        .filter_map(|c| {
+            Some(across::ScoredCell {
+                cell: gaitsweep_core::CellId(c.cell_id),
+                terrain: c.terrain_index as usize,
+                w1_index: c.w1_index,
+                w2_index: c.w2_index,
+                score: c.score.as_ref()?.score,
+            })
+        })
+        .collect();
+    match across::best_across(&scored, spec.terrains.len()) {
+        Some(a) => {
+            let rel: Vec<String> = spec
+                .terrains
+                .iter()
+                .zip(&a.relative)
+                .map(|(t, r)| format!("{t} {:.1}%", 100.0 * r))
+                .collect();
+            format!(
+                "\nacross terrains ({}): w1 {:.3}, w2 {:.3}: {:.1}% ± {:.1}% of the best on its weakest terrain, {} ({}){}",
+                across::RULE,
+                s.w1_values.get(a.w1_index as usize).copied().unwrap_or(f64::NAN),
+                s.w2_values.get(a.w2_index as usize).copied().unwrap_or(f64::NAN),
+                100.0 * a.value,
+                100.0 * a.ci95,
+                spec.terrains.get(a.weakest).map_or("?", String::as_str),
+                rel.join(", "),
+                if s.state == pb::SweepState::Done as i32 { "" } else { " (sweep still running)" }
+            )
+        }
+        None => "\nacross terrains: no grid point is scored on every terrain yet (or a terrain's best score is not positive)".to_string(),
+    }
 }
 
 /// A score's levels and overspeed in one line: `by level: 0 0.912/0% · 3 0.804/2%;

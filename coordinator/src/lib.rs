@@ -2,6 +2,7 @@
 //! daemons over gRPC, stores scores, metrics and checkpoints in SQLite or PostgreSQL and promotes the
 //! best model of each sweep.
 
+pub mod across;
 pub mod asha;
 pub mod auth;
 pub mod blobs;

@@ -24,3 +24,7 @@ ALTER TABLE scores ADD COLUMN overspeed DOUBLE PRECISION;
 ALTER TABLE evaluations ADD COLUMN progress_bounded DOUBLE PRECISION;
 ALTER TABLE evaluations ADD COLUMN mean_speed DOUBLE PRECISION;
 ALTER TABLE evaluations ADD COLUMN overspeed DOUBLE PRECISION;
+-- The grid point best across a sweep's terrains (coordinator/src/across.rs) is promoted
+-- with terrain '*', its score the min over terrains of its mean / that terrain's best mean,
+-- and this half-width of the 95% interval of that value (NULL for other promotions).
+ALTER TABLE promotions ADD COLUMN ci95 DOUBLE PRECISION;

@@ -190,6 +190,15 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
             "terrain": p.terrain, "cell_id": p.cell_id, "score": p.score,
         })).collect::<Vec<_>>(),
         "cells": cells,
+        "across": data.across().map(|a| json!({
+            "rule": crate::across::RULE,
+            "w1": data.w1_values.get(a.w1_index as usize),
+            "w2": data.w2_values.get(a.w2_index as usize),
+            "value": a.value,
+            "ci95": a.ci95,
+            "weakest": data.terrains.get(a.weakest),
+            "relative": a.relative,
+        })),
     })))
 }
 

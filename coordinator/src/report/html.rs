@@ -207,6 +207,28 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
     }
     if d.terrains.len() > 1 {
         o.push_str("<h2>Overlap across terrains</h2>\n");
+        match d.across() {
+            Some(a) => {
+                let rel: Vec<String> = d
+                    .terrains
+                    .iter()
+                    .zip(&a.relative)
+                    .map(|(t, r)| format!("{t} {:.1}%", 100.0 * r))
+                    .collect();
+                let _ = writeln!(
+                    o,
+                    "<p>Weights for every terrain ({}): <b>w1 {}, w2 {}</b>, {:.1}% \u{b1} {:.1}% of the best point on its weakest terrain, {} ({}).</p>",
+                    esc(crate::across::RULE),
+                    fmt_w(d.w1_values[a.w1_index as usize]),
+                    fmt_w(d.w2_values[a.w2_index as usize]),
+                    100.0 * a.value,
+                    100.0 * a.ci95,
+                    esc(&d.terrains[a.weakest]),
+                    esc(&rel.join(", "))
+                );
+            }
+            None => o.push_str("<p class=\"note\">No grid point is scored on every terrain with a positive best score yet: no weights for every terrain.</p>\n"),
+        }
         let (cells, _) = d.overlap();
         let list: Vec<String> = cells
             .iter()

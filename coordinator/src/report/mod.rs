@@ -130,6 +130,28 @@ pub struct ReportData {
 }
 
 impl ReportData {
+    /// The grid point best across the sweep's terrains ([`crate::across`]); `None` for one
+    /// terrain or an evolutionary search.
+    pub fn across(&self) -> Option<crate::across::AcrossTerrains> {
+        if self.evolution.is_some() {
+            return None;
+        }
+        let cells: Vec<crate::across::ScoredCell> = self
+            .cells
+            .iter()
+            .filter_map(|c| {
+                Some(crate::across::ScoredCell {
+                    cell: gaitsweep_core::CellId(c.id),
+                    terrain: c.terrain_index,
+                    w1_index: c.w1_index as u32,
+                    w2_index: c.w2_index as u32,
+                    score: c.value()?,
+                })
+            })
+            .collect();
+        crate::across::best_across(&cells, self.terrains.len())
+    }
+
     /// The cell with this id.
     pub fn cell(&self, id: i64) -> Option<&ReportCell> {
         self.cells.iter().find(|c| c.id == id)

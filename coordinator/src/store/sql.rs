@@ -8,6 +8,7 @@
 
 use super::backend::{Backend, DatabaseUrl};
 use super::progress_writer::{ProgressWriter, WriteSnapshot};
+use crate::across;
 use super::rows::{spec_of, CellRow, SweepRow, CELL_COLUMNS, SWEEP_COLUMNS};
 use super::search::{self, apply_asha, rung_result};
 use super::{
@@ -292,7 +293,57 @@ pub(super) async fn finish_if_done(
     if changed == 0 {
         return Ok(None);
     }
+    promote_across_terrains(tx, sweep, now_ms).await?;
     Ok(Some(sweep_tx(tx, sweep).await?))
+}
+
+/// When a grid over several terrains ends, promotes the point best across them
+/// ([`crate::across`]) as a `promotions` row with terrain `'*'`.
+async fn promote_across_terrains(tx: &mut Tx, sweep: SweepId, now_ms: i64) -> Result<()> {
+    let spec_json: String = sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = $1")
+        .bind(sweep.0)
+        .fetch_one(&mut **tx)
+        .await?;
+    let spec = spec_of(&spec_json)?;
+    if spec.terrains.len() < 2 || spec.search.generations().is_some() {
+        return Ok(());
+    }
+    let rows: Vec<(i64, i64, i64, i64, f64)> = sqlx::query_as(
+        "SELECT c.id, c.terrain_index, c.w1_index, c.w2_index, s.score FROM cells c \
+         JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id",
+    )
+    .bind(sweep.0)
+    .fetch_all(&mut **tx)
+    .await?;
+    let cells: Vec<across::ScoredCell> = rows
+        .into_iter()
+        .map(|(id, t, i, j, score)| across::ScoredCell {
+            cell: CellId(id),
+            terrain: t as usize,
+            w1_index: i as u32,
+            w2_index: j as u32,
+            score,
+        })
+        .collect();
+    let Some(a) = across::best_across(&cells, spec.terrains.len()) else {
+        tracing::info!(%sweep, "no grid point is scored on every terrain with a positive best: nothing promoted across terrains");
+        return Ok(());
+    };
+    sqlx::query(
+        "INSERT INTO promotions (sweep_id, terrain, cell_id, score, promoted_unix_ms, ci95) \
+         VALUES ($1, $2, $3, $4, $5, $6)",
+    )
+    .bind(sweep.0)
+    .bind(across::ACROSS)
+    .bind(a.cell.0)
+    .bind(a.value)
+    .bind(now_ms)
+    .bind(a.ci95)
+    .execute(&mut **tx)
+    .await?;
+    tracing::info!(%sweep, w1 = spec.w1_values[a.w1_index as usize], w2 = spec.w2_values[a.w2_index as usize],
+        value = a.value, ci95 = a.ci95, "promoted the grid point best across terrains");
+    Ok(())
 }
 
 pub(super) async fn checkpoint_of(
