@@ -16,6 +16,11 @@ if ! "$VENV/bin/python" -c "import tensorboard" 2>/dev/null; then
   echo "gaitsweep: installing tensorboard==2.20.0 into $VENV (once)" >&2
   "$VENV/bin/pip" install --quiet "tensorboard==2.20.0"
 fi
+# The ONNX export's test runs the exported policy in onnxruntime (and torch) to compare.
+if ! "$VENV/bin/python" -c "import onnxruntime" 2>/dev/null; then
+  echo "gaitsweep: installing onnxruntime==1.32.0 into $VENV (once)" >&2
+  "$VENV/bin/pip" install --quiet "onnxruntime==1.32.0"
+fi
 # tch's build script asks this python for libtorch's location and ABI.
 export VIRTUAL_ENV="$VENV"
 export PATH="$VENV/bin:$PATH"

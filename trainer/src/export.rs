@@ -1,6 +1,7 @@
 //! Exports a checkpoint's actor for use outside this project: `policy.pt` (TorchScript,
 //! raw observation in, action mean out, normalisation included; `torch.jit.load` loads
-//! it), `policy.safetensors` (actor weights and normalisation) and `policy.json` (the
+//! it), `policy.onnx` (the same function as an ONNX model, for onnxruntime and other
+//! deployment runtimes), `policy.safetensors` (actor weights and normalisation) and `policy.json` (the
 //! architecture, activation, observation scaling and how actions become joint targets).
 
 use std::path::{Path, PathBuf};
@@ -65,6 +66,8 @@ pub struct PolicyDescription {
 pub struct Exported {
     /// TorchScript module.
     pub torchscript: PathBuf,
+    /// The same function as an ONNX model.
+    pub onnx: PathBuf,
     /// Actor weights and normalisation.
     pub safetensors: PathBuf,
     /// Description.
@@ -133,6 +136,13 @@ pub fn export(ckpt_path: &Path, out: &Path, control: Option<ControlInfo>) -> Res
     })?;
     let torchscript = out.join("policy.pt");
     module.save(&torchscript)?;
+    let onnx = out.join("policy.onnx");
+    let doc = format!(
+        "gaitsweep policy of {} on {} (w1 {}, w2 {}, epoch {}): raw observation in, action mean out",
+        meta.robot, meta.terrain, meta.w1, meta.w2, meta.epoch
+    );
+    std::fs::write(&onnx, crate::onnx::actor_model(&actor, &doc)?)
+        .map_err(Error::io(format!("write {}", onnx.display())))?;
 
     let mut tensors: Vec<(String, Tensor)> = Vec::new();
     for (i, (w, b)) in actor.actor.layers.iter().enumerate() {
@@ -170,6 +180,7 @@ pub fn export(ckpt_path: &Path, out: &Path, control: Option<ControlInfo>) -> Res
     tracing::info!(checkpoint = %ckpt_path.display(), out = %out.display(), "exported policy");
     Ok(Exported {
         torchscript,
+        onnx,
         safetensors,
         json: json_path,
     })

@@ -8,6 +8,7 @@ pub mod device;
 pub mod error;
 pub mod evaluate;
 pub mod export;
+pub mod onnx;
 pub mod ppo;
 pub mod train;
 

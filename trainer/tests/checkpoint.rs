@@ -265,3 +265,64 @@ fn torchscript_export_matches_live_actor() {
         assert!((a - b).abs() <= 1e-5, "python {a} vs tch {b}");
     }
 }
+
+/// `policy.onnx` computes what the Rust policy does: Python's onnxruntime and torch (the
+/// venv `scripts/setup.sh` installs) run the ONNX model and the TorchScript module on the
+/// same observations, some far enough out to hit the normaliser's clip, and both agree
+/// with the live actor within 1e-5.
+#[test]
+fn onnx_export_matches_the_rust_policy_in_onnxruntime_and_torch() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut r = runner(fresh(params()), 0);
+    r.run_epoch().unwrap();
+    let path = save(dir.path(), &r);
+    let files = export(&path, &dir.path().join("export"), None).unwrap();
+    assert!(files.onnx.is_file());
+
+    let n = 64;
+    let obs = Tensor::randn([n, 4], (Kind::Float, Device::Cpu)) * 30.0;
+    let obs_host = Vec::<f32>::try_from(obs.flatten(0, -1)).unwrap();
+    let mut live = vec![0.0f32; n as usize * 2];
+    r.ppo.act_deterministic(&obs_host, &mut live).unwrap();
+    let obs_file = dir.path().join("obs.f32");
+    std::fs::write(&obs_file, obs_host.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>())
+        .unwrap();
+
+    let cache = std::env::var_os("GAITSWEEP_CACHE")
+        .map(std::path::PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/gaitsweep")));
+    let python = cache
+        .map(|c| c.join("venv/bin/python"))
+        .filter(|p| p.exists())
+        .expect("the venv of scripts/setup.sh (torch, onnxruntime) is missing");
+    let script = "import sys, numpy as np, onnxruntime as ort, torch\n\
+                  obs = np.fromfile(sys.argv[3], dtype='<f4').reshape(-1, 4)\n\
+                  s = ort.InferenceSession(sys.argv[1], providers=['CPUExecutionProvider'])\n\
+                  a = s.run(['actions'], {'obs': obs})[0]\n\
+                  t = torch.jit.load(sys.argv[2])(torch.from_numpy(obs)).detach().numpy()\n\
+                  print(' '.join(repr(float(v)) for v in a.flatten()))\n\
+                  print(' '.join(repr(float(v)) for v in t.flatten()))\n";
+    let out = std::process::Command::new(python)
+        .args(["-c", script])
+        .arg(&files.onnx)
+        .arg(&files.torchscript)
+        .arg(&obs_file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "onnxruntime or torch failed on the export: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    let rows: Vec<Vec<f32>> = text
+        .lines()
+        .map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 2, "{text}");
+    for (name, row) in ["onnxruntime", "torch"].iter().zip(&rows) {
+        assert_eq!(row.len(), live.len(), "{name}");
+        let worst = row.iter().zip(&live).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(worst <= 1e-5, "{name} differs from the Rust policy by up to {worst}");
+    }
+}

@@ -238,7 +238,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
     Ok(())
 }
 
-/// `worker export`: a checkpoint's actor as TorchScript and safetensors.
+/// `worker export`: a checkpoint's actor as TorchScript, ONNX and safetensors.
 #[derive(Args, Debug)]
 pub struct ExportArgs {
     /// The checkpoint (`ckpt-NNNNNN.safetensors`).
@@ -261,8 +261,9 @@ pub fn export(a: ExportArgs) -> Result<()> {
     };
     let files = gaitsweep_trainer::export::export(&a.checkpoint, &a.out, control)?;
     println!(
-        "{}\n{}\n{}",
+        "{}\n{}\n{}\n{}",
         files.torchscript.display(),
+        files.onnx.display(),
         files.safetensors.display(),
         files.json.display()
     );
