@@ -31,6 +31,20 @@ pub struct ScoredCell {
     pub score: f64,
 }
 
+impl ScoredCell {
+    /// A cell from the columns `cells.id, cells.terrain_index, cells.w1_index,
+    /// cells.w2_index, scores.score` (the store's promotion and the tests read them so).
+    pub fn from_row((id, terrain, w1_index, w2_index, score): (i64, i64, i64, i64, f64)) -> Self {
+        ScoredCell {
+            cell: CellId(id),
+            terrain: terrain.max(0) as usize,
+            w1_index: w1_index.max(0) as u32,
+            w2_index: w2_index.max(0) as u32,
+            score,
+        }
+    }
+}
+
 /// The point promoted across terrains.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AcrossTerrains {

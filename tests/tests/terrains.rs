@@ -7,7 +7,7 @@ mod common;
 
 use common::*;
 use gaitsweep_coordinator::across::{self, ScoredCell};
-use gaitsweep_core::{pb, CellId};
+use gaitsweep_core::pb;
 use std::time::Duration;
 
 const SWEEP_TIMEOUT: Duration = Duration::from_secs(600);
@@ -69,16 +69,7 @@ async fn a_two_terrain_sweep_scores_every_level_and_promotes_the_point_best_acro
     .fetch_all(&db)
     .await
     .unwrap();
-    let cells: Vec<ScoredCell> = scored
-        .iter()
-        .map(|&(id, t, i, j, score)| ScoredCell {
-            cell: CellId(id),
-            terrain: t as usize,
-            w1_index: i as u32,
-            w2_index: j as u32,
-            score,
-        })
-        .collect();
+    let cells: Vec<ScoredCell> = scored.iter().copied().map(ScoredCell::from_row).collect();
     let want = across::best_across(&cells, 2).unwrap_or_else(|| {
         panic!("an untrained policy standing for 2 s under commands of 0-1 m/s scores above 0 on both terrains: {scored:?}")
     });

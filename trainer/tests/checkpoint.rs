@@ -235,13 +235,7 @@ fn torchscript_export_matches_live_actor() {
     assert_eq!(desc["activation"], "elu");
 
     // Python's torch.jit.load must load it too (the venv that scripts/setup.sh installs).
-    let cache = std::env::var_os("GAITSWEEP_CACHE")
-        .map(std::path::PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/gaitsweep")));
-    let python = cache
-        .map(|c| c.join("venv/bin/python"))
-        .filter(|p| p.exists())
-        .expect("the torch venv of scripts/setup.sh is missing");
+    let python = venv_python();
     let script = "import sys, torch; m = torch.jit.load(sys.argv[1]); \
                   print(' '.join(repr(v) for v in m(torch.full((1, 4), 0.5)).flatten().tolist()))";
     let out = std::process::Command::new(python)
@@ -288,13 +282,7 @@ fn onnx_export_matches_the_rust_policy_in_onnxruntime_and_torch() {
     std::fs::write(&obs_file, obs_host.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>())
         .unwrap();
 
-    let cache = std::env::var_os("GAITSWEEP_CACHE")
-        .map(std::path::PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/gaitsweep")));
-    let python = cache
-        .map(|c| c.join("venv/bin/python"))
-        .filter(|p| p.exists())
-        .expect("the venv of scripts/setup.sh (torch, onnxruntime) is missing");
+    let python = venv_python();
     let script = "import sys, numpy as np, onnxruntime as ort, torch\n\
                   obs = np.fromfile(sys.argv[3], dtype='<f4').reshape(-1, 4)\n\
                   s = ort.InferenceSession(sys.argv[1], providers=['CPUExecutionProvider'])\n\
@@ -325,4 +313,14 @@ fn onnx_export_matches_the_rust_policy_in_onnxruntime_and_torch() {
         let worst = row.iter().zip(&live).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
         assert!(worst <= 1e-5, "{name} differs from the Rust policy by up to {worst}");
     }
+}
+
+/// The python of the venv `scripts/setup.sh` installs (torch, onnxruntime).
+fn venv_python() -> std::path::PathBuf {
+    std::env::var_os("GAITSWEEP_CACHE")
+        .map(std::path::PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/gaitsweep")))
+        .map(|c| c.join("venv/bin/python"))
+        .filter(|p| p.exists())
+        .expect("the venv of scripts/setup.sh (torch, onnxruntime) is missing: run the tests through scripts/test.sh")
 }

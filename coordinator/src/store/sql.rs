@@ -315,16 +315,8 @@ async fn promote_across_terrains(tx: &mut Tx, sweep: SweepId, now_ms: i64) -> Re
     .bind(sweep.0)
     .fetch_all(&mut **tx)
     .await?;
-    let cells: Vec<across::ScoredCell> = rows
-        .into_iter()
-        .map(|(id, t, i, j, score)| across::ScoredCell {
-            cell: CellId(id),
-            terrain: t as usize,
-            w1_index: i as u32,
-            w2_index: j as u32,
-            score,
-        })
-        .collect();
+    let cells: Vec<across::ScoredCell> =
+        rows.into_iter().map(across::ScoredCell::from_row).collect();
     let Some(a) = across::best_across(&cells, spec.terrains.len()) else {
         tracing::info!(%sweep, "no grid point is scored on every terrain with a positive best: nothing promoted across terrains");
         return Ok(());
