@@ -15,6 +15,7 @@ pub const TRAINER_METRICS: &[&str] = &[
     "grad_norm",
     "kl",
     "learning_rate",
+    "loss/mirror",
     "loss/surrogate",
     "loss/value",
     "mean_episode_length",

@@ -163,7 +163,11 @@ mod tests {
 
     #[test]
     fn every_term_matches_a_hand_computation() {
-        let r = Preset::load("anymal").unwrap().reward;
+        // The hand computation below is written for a heading weight of 0.5.
+        let r = RewardConfig {
+            w3_heading: 0.5,
+            ..Preset::load("anymal").unwrap().reward
+        };
         let inp = RewardInput {
             cmd_speed: 1.0,
             cmd_yaw_rate: 0.5,

@@ -151,6 +151,10 @@ fn submit(cluster: &Cluster, home: &Path, url: &str, submit_dir: &Path) -> (Stri
         .env_remove("GAITSWEEP_TOKEN")
         .env("GAITSWEEP_TOKEN_FILE", home.join("no-token"))
         .env("RUST_LOG", "info")
+        // The job's node-local scratch (the script's work dir) inside this test's temp dir:
+        // job ids restart at 1 on every new cluster, and a cached checkpoint of an earlier
+        // run in /tmp/gaitsweep-worker-2 would spare the resumed cell its download.
+        .env("TMPDIR", submit_dir)
         .output()
         .expect("run sbatch");
     assert!(

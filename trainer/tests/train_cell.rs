@@ -290,9 +290,11 @@ fn the_mirror_loss_makes_the_policy_symmetric_and_needs_a_mirror() {
         loss[loss.len() - 1] < 0.5 * loss[0],
         "the mirror loss did not fall by half over 12 epochs: {loss:?}"
     );
-    // Off by default: no such metric.
+    // Off (rsl_rl's default, and a spec's `mirror_loss_coef = 0`): no such metric.
+    let mut off = cfg(&dir.path().join("plain"), 1, None);
+    off.ppo_overrides.insert("mirror_loss_coef".into(), 0.0);
     let mut plain = Collect::default();
-    train_cell(&cfg(&dir.path().join("plain"), 1, None), &mut plain).unwrap();
+    train_cell(&off, &mut plain).unwrap();
     assert!(!plain.epochs[0].values.contains_key("loss/mirror"));
 
     // A preset without a mirror cannot have the loss.
