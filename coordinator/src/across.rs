@@ -74,7 +74,10 @@ pub fn best_across(cells: &[ScoredCell], terrains: usize) -> Option<AcrossTerrai
     }
     // (w1, w2) -> terrain -> replicates.
     let mut points: BTreeMap<(u32, u32), BTreeMap<usize, Vec<(CellId, f64)>>> = BTreeMap::new();
-    for c in cells.iter().filter(|c| c.score.is_finite() && c.terrain < terrains) {
+    for c in cells
+        .iter()
+        .filter(|c| c.score.is_finite() && c.terrain < terrains)
+    {
         points
             .entry((c.w1_index, c.w2_index))
             .or_default()
@@ -107,11 +110,15 @@ pub fn best_across(cells: &[ScoredCell], terrains: usize) -> Option<AcrossTerrai
             .enumerate()
             .map(|(t, (s, _))| s.mean / best_mean[t])
             .collect();
-        let (weakest, value) = relative
-            .iter()
-            .copied()
-            .enumerate()
-            .fold((0, f64::INFINITY), |a, (t, v)| if v < a.1 { (t, v) } else { a });
+        let (weakest, value) =
+            relative
+                .iter()
+                .copied()
+                .enumerate()
+                .fold(
+                    (0, f64::INFINITY),
+                    |a, (t, v)| if v < a.1 { (t, v) } else { a },
+                );
         let (s, replicates) = &stats[weakest];
         let cell = replicates
             .iter()

@@ -529,12 +529,21 @@ pub fn levels_line(s: &pb::GaitScore) -> String {
         .iter()
         .filter_map(|l| {
             let x = l.score.as_ref()?;
-            Some(format!("level {} {:.4}/{:.0}%", l.level, x.score, 100.0 * x.fall_rate))
+            Some(format!(
+                "level {} {:.4}/{:.0}%",
+                l.level,
+                x.score,
+                100.0 * x.fall_rate
+            ))
         })
         .collect();
     format!(
         "  by level (score / fall rate): {}; overspeed {:.3} m/s (mean speed above the command)",
-        if by.is_empty() { "-".to_string() } else { by.join(" · ") },
+        if by.is_empty() {
+            "-".to_string()
+        } else {
+            by.join(" · ")
+        },
         s.overspeed
     )
 }

@@ -513,7 +513,9 @@ impl SweepSpec {
         }
         let eval_levels: Vec<u8> = match &self.eval.levels {
             Some(l) if l.is_empty() => {
-                problems.push("eval.levels is empty: list at least one level, e.g. [0, 3, 5, 7]".into());
+                problems.push(
+                    "eval.levels is empty: list at least one level, e.g. [0, 3, 5, 7]".into(),
+                );
                 vec![]
             }
             Some(l) => {
@@ -533,7 +535,13 @@ impl SweepSpec {
                 None => defaults::EVAL_LEVELS.to_vec(),
             },
         };
-        let score = match self.eval.score.as_deref().unwrap_or("").parse::<ScoreVariant>() {
+        let score = match self
+            .eval
+            .score
+            .as_deref()
+            .unwrap_or("")
+            .parse::<ScoreVariant>()
+        {
             Ok(v) => v,
             Err(e) => {
                 problems.push(format!("eval.{e}"));
@@ -1269,16 +1277,28 @@ mod tests {
     fn a_score_covers_the_evaluation_levels_the_spec_resolves() {
         let base = "robot = \"anymal\"\nterrains = [\"flat\", \"rough\", \"stairs\"]\nagents_per_cell = 4\n\
                     epochs = 10\nw1 = { values = [2.0] }\nw2 = { values = [-6.0] }\n";
-        let r = SweepSpec::from_toml(base).unwrap().resolve_with(ok).unwrap();
+        let r = SweepSpec::from_toml(base)
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap();
         assert_eq!(r.eval_levels, crate::defaults::EVAL_LEVELS);
         assert_eq!(r.eval_levels_for("flat"), [0]);
         assert_eq!(r.eval_levels_for("stairs"), [0, 3, 5, 7]);
         assert_eq!(r.score, ScoreVariant::Eq4);
         let given = format!("{base}eval = {{ levels = [2, 6], score = \"bounded\" }}\n");
-        let r = SweepSpec::from_toml(&given).unwrap().resolve_with(ok).unwrap();
-        assert_eq!((r.eval_levels_for("rough"), r.score), (vec![2, 6], ScoreVariant::Bounded));
+        let r = SweepSpec::from_toml(&given)
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap();
+        assert_eq!(
+            (r.eval_levels_for("rough"), r.score),
+            (vec![2, 6], ScoreVariant::Bounded)
+        );
         let fixed = format!("difficulty = 4\n{base}");
-        let r = SweepSpec::from_toml(&fixed).unwrap().resolve_with(ok).unwrap();
+        let r = SweepSpec::from_toml(&fixed)
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap();
         assert_eq!(r.eval_levels_for("rough"), [4]);
         // The task a worker gets carries the levels of its cell's terrain and the variant.
         let json = serde_json::to_value(&r).unwrap();
@@ -1298,7 +1318,11 @@ mod tests {
             panic!("accepted {bad}")
         };
         let all = p.join("\n");
-        for needle in ["eval.levels has 12", "lists a level twice", "eval.score \"fast\""] {
+        for needle in [
+            "eval.levels has 12",
+            "lists a level twice",
+            "eval.score \"fast\"",
+        ] {
             assert!(all.contains(needle), "{needle} not in {all}");
         }
     }

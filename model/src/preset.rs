@@ -512,7 +512,10 @@ impl PpoConfig {
     /// `final_noise_std` at `end_fraction * budget`. A schedule given in epochs is kept
     /// as it is; one given both ways, or whose fractions do not rise, is an error.
     pub fn resolve_schedule(&mut self, budget: u32) -> Result<()> {
-        let (start, end) = (self.noise_decay_start_fraction, self.noise_decay_end_fraction);
+        let (start, end) = (
+            self.noise_decay_start_fraction,
+            self.noise_decay_end_fraction,
+        );
         if start == 0.0 && end == 0.0 {
             return Ok(());
         }
@@ -839,7 +842,10 @@ mod schedule_tests {
             let mut p = annealed(0.4, 0.7);
             p.resolve_schedule(budget).unwrap();
             assert_eq!((p.noise_decay_start, p.noise_decay_epochs), (start, epochs));
-            assert_eq!((p.noise_decay_start_fraction, p.noise_decay_end_fraction), (0.0, 0.0));
+            assert_eq!(
+                (p.noise_decay_start_fraction, p.noise_decay_end_fraction),
+                (0.0, 0.0)
+            );
         }
     }
 
@@ -863,7 +869,11 @@ mod schedule_tests {
         assert!(annealed(0.7, 0.4).resolve_schedule(1000).is_err());
         let mut p = annealed(0.4, 0.7);
         p.final_noise_std = 0.0;
-        assert!(p.resolve_schedule(1000).unwrap_err().to_string().contains("final_noise_std"));
+        assert!(p
+            .resolve_schedule(1000)
+            .unwrap_err()
+            .to_string()
+            .contains("final_noise_std"));
         let mut o = BTreeMap::new();
         o.insert("noise_decay_end_fraction".to_string(), 1.5);
         assert!(PpoConfig::default().apply_overrides(&o).is_err());

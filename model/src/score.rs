@@ -265,7 +265,10 @@ mod tests {
         for v in ScoreVariant::ALL {
             assert_eq!(v.to_string().parse::<ScoreVariant>(), Ok(v));
         }
-        assert!("fast".parse::<ScoreVariant>().unwrap_err().contains("bounded"));
+        assert!("fast"
+            .parse::<ScoreVariant>()
+            .unwrap_err()
+            .contains("bounded"));
     }
 
     #[test]

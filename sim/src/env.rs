@@ -382,7 +382,12 @@ impl VecEnv {
     /// Scores of episodes that ended since the last reset, plus the running episodes of
     /// frozen (evaluated) robots; used by the evaluation.
     pub fn gait_score(&self, variant: ScoreVariant) -> GaitScore {
-        score::summarize(&self.finished, self.mass, u64::from(self.max_steps), variant)
+        score::summarize(
+            &self.finished,
+            self.mass,
+            u64::from(self.max_steps),
+            variant,
+        )
     }
 
     /// Robot mass (kg).

@@ -43,7 +43,12 @@ pub fn evaluate(
     let mut levels = Vec::with_capacity(cfg.levels.len());
     for &level in &cfg.levels {
         let score = evaluate_level(preset, w1, w2, cfg, level, policy)?;
-        tracing::debug!(level, score = score.score, fall_rate = score.fall_rate, "level evaluated");
+        tracing::debug!(
+            level,
+            score = score.score,
+            fall_rate = score.fall_rate,
+            "level evaluated"
+        );
         levels.push(LevelScore { level, score });
     }
     Ok(GaitScore::mean_of_levels(levels))

@@ -336,10 +336,16 @@ mod tests {
         // The demo's flat recipe: anymal's reward but for the heading weight.
         assert_eq!((proof.reward.w3_heading, a.reward.w3_heading), (0.5, 6.0));
         assert_eq!(
-            RewardConfig { w3_heading: 0.5, ..a.reward.clone() },
+            RewardConfig {
+                w3_heading: 0.5,
+                ..a.reward.clone()
+            },
             proof.reward
         );
-        assert_eq!((proof.ppo.init_noise_std, proof.ppo.mirror_loss_coef), (0.3, 0.0));
+        assert_eq!(
+            (proof.ppo.init_noise_std, proof.ppo.mirror_loss_coef),
+            (0.3, 0.0)
+        );
     }
 
     /// Issue 39: a sweep's grids on different terrains must differ only in the ground. Every
@@ -350,12 +356,19 @@ mod tests {
     fn a_cell_on_every_terrain_uses_the_same_recipe() {
         for robot in gaitsweep_model::preset::available() {
             let p = Preset::load(&robot).unwrap();
-            assert!(p.terrain.is_empty(), "{robot} has terrain tables: {:?}", p.terrain.keys());
+            assert!(
+                p.terrain.is_empty(),
+                "{robot} has terrain tables: {:?}",
+                p.terrain.keys()
+            );
             for t in TerrainKind::ALL {
                 let on = p.on_terrain(t).unwrap();
                 assert_eq!(on.reward, p.reward, "{robot} on {t}: reward weights differ");
                 assert_eq!(on.ppo, p.ppo, "{robot} on {t}: ppo differs");
-                assert_eq!(on.domain_rand, p.domain_rand, "{robot} on {t}: domain_rand differs");
+                assert_eq!(
+                    on.domain_rand, p.domain_rand,
+                    "{robot} on {t}: domain_rand differs"
+                );
             }
             assert!(
                 p.ppo.noise_decay_start == 0 && p.ppo.noise_decay_epochs == 0,
@@ -365,7 +378,11 @@ mod tests {
             let mut long = p.ppo.clone();
             short.resolve_schedule(600).unwrap();
             long.resolve_schedule(3000).unwrap();
-            assert_eq!(long.noise_decay_start, 5 * short.noise_decay_start, "{robot}");
+            assert_eq!(
+                long.noise_decay_start,
+                5 * short.noise_decay_start,
+                "{robot}"
+            );
         }
     }
 

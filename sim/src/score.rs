@@ -239,7 +239,12 @@ mod tests {
         let eq4 = |r: &ScoreAccumulator| summarize(&[r.clone()], 25.0, 1000, ScoreVariant::Eq4);
         let bounded =
             |r: &ScoreAccumulator| summarize(&[r.clone()], 25.0, 1000, ScoreVariant::Bounded);
-        assert!(eq4(&runner).score > eq4(&tracker).score, "{} vs {}", eq4(&runner).score, eq4(&tracker).score);
+        assert!(
+            eq4(&runner).score > eq4(&tracker).score,
+            "{} vs {}",
+            eq4(&runner).score,
+            eq4(&tracker).score
+        );
         assert!(bounded(&tracker).score > bounded(&runner).score + 0.9);
         // The capped progress is what tracking earns: 1,000 steps of 0.01 m.
         assert!((bounded(&runner).progress_bounded - 0.1).abs() < 1e-6);

@@ -40,9 +40,15 @@ fn training_observations_are_noisy_and_evaluation_ones_are_not() {
     // robots/anymal trains without observation noise (its preset says why); legged_gym's
     // noise is the default of a preset that does not say.
     let mut noisy = Preset::load("anymal").unwrap();
-    assert!(!noisy.domain_rand.add_noise, "the shipped anymal recipe has no observation noise");
+    assert!(
+        !noisy.domain_rand.add_noise,
+        "the shipped anymal recipe has no observation noise"
+    );
     noisy.domain_rand = DomainRandConfig::default();
-    assert!(noisy.domain_rand.add_noise, "legged_gym's default adds noise");
+    assert!(
+        noisy.domain_rand.add_noise,
+        "legged_gym's default adds noise"
+    );
     let mut quiet = noisy.clone();
     quiet.domain_rand = DomainRandConfig::off();
 

@@ -107,7 +107,11 @@ impl Cluster {
 
     /// The job's state as `scontrol show job` says (RUNNING, CANCELLED, COMPLETED, ...).
     fn job_state(&self, job: &str) -> Option<String> {
-        let out = self.command("scontrol").args(["show", "job", job]).output().ok()?;
+        let out = self
+            .command("scontrol")
+            .args(["show", "job", job])
+            .output()
+            .ok()?;
         let text = String::from_utf8_lossy(&out.stdout).into_owned();
         text.split_whitespace()
             .find_map(|w| w.strip_prefix("JobState="))
@@ -314,20 +318,22 @@ async fn sbatch_workers_give_cells_back_on_scancel_and_the_sweep_completes() {
     .await
     .unwrap();
     assert_eq!(attempts.len(), 2, "{attempts:?}");
-    assert_eq!((attempts[0].0.as_str(), attempts[1].0.as_str()), ("released", "done"));
+    assert_eq!(
+        (attempts[0].0.as_str(), attempts[1].0.as_str()),
+        ("released", "done")
+    );
     assert!(
         attempts[1].1 >= epoch && attempts[1].1 > 0,
         "the cell resumed from epoch {} (checkpoint of epoch {epoch} before scancel)",
         attempts[1].1
     );
     assert_ne!(attempts[0].2, attempts[1].2, "job 2's worker resumed it");
-    let other: Vec<String> = sqlx::query_scalar(
-        "SELECT state FROM attempts WHERE cell_id <> $1 ORDER BY id",
-    )
-    .bind(cell)
-    .fetch_all(&db)
-    .await
-    .unwrap();
+    let other: Vec<String> =
+        sqlx::query_scalar("SELECT state FROM attempts WHERE cell_id <> $1 ORDER BY id")
+            .bind(cell)
+            .fetch_all(&db)
+            .await
+            .unwrap();
     assert_eq!(other, ["done"], "the other cell trained once, by job 2");
     let text2 = read(&out2);
     assert!(
@@ -357,7 +363,12 @@ async fn sbatch_workers_give_cells_back_on_scancel_and_the_sweep_completes() {
 
     // `coordinator show`, as the README's Slurm section ends.
     let show = Command::new(bin("coordinator"))
-        .args(["show", "--connect", &coord.url(), &sweep.sweep_id.to_string()])
+        .args([
+            "show",
+            "--connect",
+            &coord.url(),
+            &sweep.sweep_id.to_string(),
+        ])
         .output()
         .unwrap();
     let shown = String::from_utf8_lossy(&show.stdout);

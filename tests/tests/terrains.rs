@@ -57,7 +57,10 @@ async fn a_two_terrain_sweep_scores_every_level_and_promotes_the_point_best_acro
     .unwrap();
     assert_eq!(means.len(), 4);
     for (cell, score, mean, bounded, overspeed) in &means {
-        assert!((score - mean).abs() < 1e-9, "cell {cell}: score {score}, mean of levels {mean}");
+        assert!(
+            (score - mean).abs() < 1e-9,
+            "cell {cell}: score {score}, mean of levels {mean}"
+        );
         assert!(bounded.is_finite() && *overspeed >= 0.0);
     }
 
@@ -80,11 +83,20 @@ async fn a_two_terrain_sweep_scores_every_level_and_promotes_the_point_best_acro
     .fetch_one(&db)
     .await
     .unwrap();
-    assert_eq!((row.0, row.2), (want.cell.0, Some(0.0)), "one seed: no interval");
+    assert_eq!(
+        (row.0, row.2),
+        (want.cell.0, Some(0.0)),
+        "one seed: no interval"
+    );
     assert!((row.1 - want.value).abs() < 1e-12 && want.value > 0.0 && want.value <= 1.0);
 
     let out = std::process::Command::new(bin("coordinator"))
-        .args(["show", "--connect", &coord.url(), &sweep.sweep_id.to_string()])
+        .args([
+            "show",
+            "--connect",
+            &coord.url(),
+            &sweep.sweep_id.to_string(),
+        ])
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
@@ -95,7 +107,10 @@ async fn a_two_terrain_sweep_scores_every_level_and_promotes_the_point_best_acro
             && text.contains(&format!("w1 {w1:.3}")),
         "{text}"
     );
-    assert!(text.contains("by level (score / fall rate): level 0"), "{text}");
+    assert!(
+        text.contains("by level (score / fall rate): level 0"),
+        "{text}"
+    );
 
     let report = tmp.path().join("report");
     let out = std::process::Command::new(bin("coordinator"))
@@ -107,9 +122,16 @@ async fn a_two_terrain_sweep_scores_every_level_and_promotes_the_point_best_acro
         .arg(sweep.sweep_id.to_string())
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let html = std::fs::read_to_string(report.join("index.html")).unwrap();
-    assert!(html.contains("Weights for every terrain"), "report has no across-terrains line");
+    assert!(
+        html.contains("Weights for every terrain"),
+        "report has no across-terrains line"
+    );
     assert!(html.contains("L5 "), "report has no per-level scores");
     assert!(html.contains("rough at levels 0, 5") && html.contains("progress term: bounded"));
 }

@@ -221,7 +221,11 @@ pub fn actor_model(actor: &ExportedActor, doc: &str) -> Result<Vec<u8>> {
         initializer.push(tensor(&wn, w)?);
         initializer.push(tensor(&bn, b)?);
         let last = i + 1 == layers.len();
-        let h = if last { "actions".to_string() } else { format!("h{i}") };
+        let h = if last {
+            "actions".to_string()
+        } else {
+            format!("h{i}")
+        };
         let trans_b = AttributeProto {
             name: "transB".into(),
             i: 1,
@@ -286,9 +290,16 @@ mod tests {
         let ops: Vec<&str> = g.node.iter().map(|n| n.op_type.as_str()).collect();
         assert_eq!(ops, ["Sub", "Div", "Clip", "Gemm", "Elu", "Gemm"]);
         assert_eq!(g.node.last().unwrap().output, ["actions"]);
-        let w = g.initializer.iter().find(|t| t.name == "actor.0.weight").unwrap();
+        let w = g
+            .initializer
+            .iter()
+            .find(|t| t.name == "actor.0.weight")
+            .unwrap();
         assert_eq!(w.dims, [2, 3]);
         assert_eq!(&w.raw_data[4..8], 2.0f32.to_le_bytes());
-        assert_eq!((m.opset_import[0].version, m.ir_version), (OPSET, IR_VERSION));
+        assert_eq!(
+            (m.opset_import[0].version, m.ir_version),
+            (OPSET, IR_VERSION)
+        );
     }
 }

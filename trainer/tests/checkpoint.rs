@@ -279,8 +279,14 @@ fn onnx_export_matches_the_rust_policy_in_onnxruntime_and_torch() {
     let mut live = vec![0.0f32; n as usize * 2];
     r.ppo.act_deterministic(&obs_host, &mut live).unwrap();
     let obs_file = dir.path().join("obs.f32");
-    std::fs::write(&obs_file, obs_host.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>())
-        .unwrap();
+    std::fs::write(
+        &obs_file,
+        obs_host
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
 
     let python = venv_python();
     let script = "import sys, numpy as np, onnxruntime as ort, torch\n\
@@ -310,8 +316,15 @@ fn onnx_export_matches_the_rust_policy_in_onnxruntime_and_torch() {
     assert_eq!(rows.len(), 2, "{text}");
     for (name, row) in ["onnxruntime", "torch"].iter().zip(&rows) {
         assert_eq!(row.len(), live.len(), "{name}");
-        let worst = row.iter().zip(&live).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
-        assert!(worst <= 1e-5, "{name} differs from the Rust policy by up to {worst}");
+        let worst = row
+            .iter()
+            .zip(&live)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst <= 1e-5,
+            "{name} differs from the Rust policy by up to {worst}"
+        );
     }
 }
 

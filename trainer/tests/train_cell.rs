@@ -372,5 +372,8 @@ fn a_rough_cell_is_scored_as_the_mean_over_its_evaluation_levels() {
     let b = train_cell(&c, &mut Collect::default()).unwrap().score;
     let l7 = &s.levels[1].score;
     assert!((b.progress - l7.progress).abs() < 1e-12 && b.progress_bounded <= b.progress + 1e-12);
-    assert!((b.score - (l7.score - l7.progress + l7.progress_bounded)).abs() < 1e-9, "{b:?} vs {l7:?}");
+    assert!(
+        (b.score - (l7.score - l7.progress + l7.progress_bounded)).abs() < 1e-9,
+        "{b:?} vs {l7:?}"
+    );
 }

@@ -203,11 +203,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         ppo_overrides: parse_overrides(&a.set)?,
         eval_robots: a.eval_robots,
         eval_seconds: a.eval_seconds,
-        eval_levels: gaitsweep_core::defaults::eval_levels(
-            a.terrain,
-            a.difficulty,
-            &a.eval_levels,
-        ),
+        eval_levels: gaitsweep_core::defaults::eval_levels(a.terrain, a.difficulty, &a.eval_levels),
         score: a.score,
         eval_every: a.eval_every.unwrap_or(0),
     };

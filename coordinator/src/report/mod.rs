@@ -358,7 +358,11 @@ pub fn eval_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
         .map(|t| {
             let l = spec.eval_levels_for(&t.to_string());
             let l: Vec<String> = l.iter().map(u8::to_string).collect();
-            format!("{t} at level{} {}", if l.len() == 1 { "" } else { "s" }, l.join(", "))
+            format!(
+                "{t} at level{} {}",
+                if l.len() == 1 { "" } else { "s" },
+                l.join(", ")
+            )
         })
         .collect();
     format!(

@@ -58,7 +58,21 @@ pub async fn final_levels<'e>(
     db: impl sqlx::Executor<'e, Database = sqlx::Any>,
     sweep: SweepId,
 ) -> Result<BTreeMap<i64, Vec<LevelScore>>> {
-    type Row = (i64, i64, f64, f64, f64, f64, f64, f64, f64, f64, f64, f64, i64);
+    type Row = (
+        i64,
+        i64,
+        f64,
+        f64,
+        f64,
+        f64,
+        f64,
+        f64,
+        f64,
+        f64,
+        f64,
+        f64,
+        i64,
+    );
     let rows: Vec<Row> = sqlx::query_as(
         "SELECT l.cell_id, l.level, l.score, l.track, l.effort, l.tilt, l.progress, \
          l.progress_bounded, l.fall_rate, l.mean_vel_error, l.mean_speed, l.overspeed, \

@@ -8,12 +8,12 @@
 
 use super::backend::{Backend, DatabaseUrl};
 use super::progress_writer::{ProgressWriter, WriteSnapshot};
-use crate::across;
 use super::rows::{spec_of, CellRow, SweepRow, CELL_COLUMNS, SWEEP_COLUMNS};
 use super::search::{self, apply_asha, rung_result};
 use super::{
     AttemptEnd, AttemptOutcome, LeaseGrant, ResultOutcome, RunningLease, Store, WorkerInfo,
 };
+use crate::across;
 use crate::sched::{self, Candidate};
 use crate::{validate, Error, Result};
 use gaitsweep_core::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};

@@ -904,28 +904,40 @@ async fn each_level_of_an_evaluation_is_stored() {
     let g = store.lease_next(&w, 0, 1).await.unwrap().unwrap();
     // A periodic evaluation arrives as metrics, the final one as the result.
     let periodic = score_at_levels(0.2, 0.0).eval_metrics();
-    store.record_progress(g.lease, &[(1, periodic)]).await.unwrap();
+    store
+        .record_progress(g.lease, &[(1, periodic)])
+        .await
+        .unwrap();
     let s = score_at_levels(0.9, 0.3);
     store.report_result(g.lease, &s, 3, None, 2).await.unwrap();
     let cells = store.cells(sweep.id).await.unwrap();
     let got = cells[0].score.clone().unwrap();
     assert!((got.score - 0.6).abs() < 1e-12);
     assert_eq!(got.levels.len(), 2, "{got:?}");
-    assert_eq!((got.levels[1].level, got.levels[1].score.fall_rate), (7, 0.5));
+    assert_eq!(
+        (got.levels[1].level, got.levels[1].score.fall_rate),
+        (7, 0.5)
+    );
     assert!((got.overspeed - 0.1).abs() < 1e-12);
     let rows: Vec<(i64, i64, f64)> =
         sqlx::query_as("SELECT epoch, level, score FROM level_scores ORDER BY epoch, level")
             .fetch_all(store.reader())
             .await
             .unwrap();
-    assert_eq!(rows, vec![(1, 0, 0.2), (1, 7, 0.0), (3, 0, 0.9), (3, 7, 0.3)]);
+    assert_eq!(
+        rows,
+        vec![(1, 0, 0.2), (1, 7, 0.0), (3, 0, 0.9), (3, 7, 0.3)]
+    );
     // A level outside 0-9 or a non-finite level score is refused, naming it.
     let mut bad = score_at_levels(0.9, 0.3);
     bad.levels[1].score.track = f64::NAN;
     let g2 = store.create_sweep(&sp, 0).await.unwrap();
     let lease = store.lease_next(&w, 0, 1).await.unwrap().unwrap();
     assert_eq!(lease.cell.sweep_id, g2.id);
-    let e = store.report_result(lease.lease, &bad, 3, None, 2).await.unwrap_err();
+    let e = store
+        .report_result(lease.lease, &bad, 3, None, 2)
+        .await
+        .unwrap_err();
     assert!(e.to_string().contains("levels[7].track"), "{e}");
 }
 

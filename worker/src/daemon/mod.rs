@@ -303,7 +303,11 @@ async fn run_lease<C: Coordinator>(ctx: &Ctx<C>, slot: u32, lease: pb::Lease) ->
         eval_levels: gaitsweep_core::defaults::eval_levels(
             terrain,
             task.difficulty.map(|d| d.min(9) as u8),
-            &task.eval_levels.iter().map(|l| (*l).min(9) as u8).collect::<Vec<_>>(),
+            &task
+                .eval_levels
+                .iter()
+                .map(|l| (*l).min(9) as u8)
+                .collect::<Vec<_>>(),
         ),
         score: task.score.parse().map_err(Error::Config)?,
         eval_every: task.eval_every,
