@@ -84,9 +84,22 @@ pub async fn final_levels<'e>(
     .fetch_all(db)
     .await?;
     let mut out: BTreeMap<i64, Vec<LevelScore>> = BTreeMap::new();
-    for r in rows {
-        let (cell, level, score, track, effort, tilt, progress, bounded, fall, err, speed, over) =
-            (r.0, r.1, r.2, r.3, r.4, r.5, r.6, r.7, r.8, r.9, r.10, r.11);
+    for (
+        cell,
+        level,
+        score,
+        track,
+        effort,
+        tilt,
+        progress,
+        bounded,
+        fall,
+        err,
+        speed,
+        over,
+        robots,
+    ) in rows
+    {
         out.entry(cell).or_default().push(LevelScore {
             level: level.clamp(0, 9) as u8,
             score: GaitScore {
@@ -100,7 +113,7 @@ pub async fn final_levels<'e>(
                 mean_vel_error: err,
                 mean_speed: speed,
                 overspeed: over,
-                robots: r.12.max(0) as usize,
+                robots: robots.max(0) as usize,
                 ..Default::default()
             },
         });
