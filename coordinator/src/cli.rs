@@ -362,7 +362,8 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
     use std::fmt::Write;
     let mut o = String::new();
     let spec = s.spec.clone().unwrap_or_default();
-    let replicates = spec.seeds.max(1);
+    // With finalists, the top points show the mean of their seeds like a replicated grid.
+    let replicates = spec.seeds.max(spec.finalists_seeds).max(1);
     let _ = writeln!(
         o,
         "sweep {} {:?}: robot {}, {} | {} cells: {} done, {} running, {} queued, {} failed",
@@ -376,7 +377,13 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         s.cells_queued,
         s.cells_failed
     );
-    if replicates > 1 {
+    if spec.finalists_seeds > 1 {
+        let _ = writeln!(
+            o,
+            "finalists: the top {} points of each terrain by their first seed get {} seeds (mean score ± 95% confidence interval / mean fall rate); the promoted point is the finalist with the best mean",
+            spec.finalists_top, spec.finalists_seeds
+        );
+    } else if replicates > 1 {
         let _ = writeln!(
             o,
             "{replicates} replicates (seeds) per grid point: mean score ± 95% confidence interval / mean fall rate; points rank by the mean"
@@ -403,8 +410,15 @@ fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                 .collect()
         };
         let mut best_here: Option<((usize, usize), f64)> = None;
+        // Once finalists exist, a terrain's best is among them, as its promotion is.
+        let finalists_here = spec.finalists_seeds > 1
+            && (0..s.w1_values.len())
+                .any(|i| (0..s.w2_values.len()).any(|j| point(i, j).len() > 1));
         for i in 0..s.w1_values.len() {
             for j in 0..s.w2_values.len() {
+                if finalists_here && point(i, j).len() < 2 {
+                    continue;
+                }
                 if let Some((st, _)) = point_summary(&point(i, j)) {
                     if best_here.is_none_or(|b| st.mean > b.1) {
                         best_here = Some(((i, j), st.mean));

@@ -8,6 +8,7 @@ pub mod auth;
 pub mod blobs;
 pub mod error;
 pub mod evolution;
+pub mod finalists;
 pub mod genetic;
 pub mod leases;
 pub mod live;

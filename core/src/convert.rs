@@ -73,6 +73,12 @@ impl From<pb::SweepSpec> for SweepSpec {
                     sigma: (s.search_sigma != 0.0).then_some(s.search_sigma),
                     budget_epochs: (s.search_budget_epochs != 0).then_some(s.search_budget_epochs),
                 }),
+            finalists: (s.finalists_top != 0 || s.finalists_seeds != 0).then_some(
+                crate::finalists::FinalistsSpec {
+                    top: s.finalists_top,
+                    seeds: s.finalists_seeds,
+                },
+            ),
         }
     }
 }
@@ -117,6 +123,8 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
             search_budget_epochs: s.budget_epochs().unwrap_or(0),
             eval_levels: s.eval_levels.iter().map(|l| u32::from(*l)).collect(),
             score: s.score.to_string(),
+            finalists_top: s.finalists.map_or(0, |f| f.top),
+            finalists_seeds: s.finalists.map_or(0, |f| f.seeds),
         }
     }
 }

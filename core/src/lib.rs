@@ -6,6 +6,7 @@ pub mod client;
 pub mod convert;
 pub mod defaults;
 pub mod error;
+pub mod finalists;
 pub mod ids;
 pub mod reason;
 pub mod records;

@@ -284,6 +284,10 @@ pub struct SweepSpec {
     /// Search strategy (default: the full grid).
     #[serde(default)]
     pub search: Option<SearchSpec>,
+    /// After the grid's single-seed pass, train the best points of each terrain with more
+    /// seeds and promote among them (default: none).
+    #[serde(default)]
+    pub finalists: Option<crate::finalists::FinalistsSpec>,
 }
 
 /// A validated spec with every default filled in: what the coordinator stores and runs.
@@ -333,6 +337,9 @@ pub struct ResolvedSpec {
     /// Search strategy (specs stored before searches existed read as the grid).
     #[serde(default)]
     pub search: Search,
+    /// The finalist stage, if any (specs stored before it read as none).
+    #[serde(default)]
+    pub finalists: Option<crate::finalists::Finalists>,
 }
 
 /// One cell of an expanded grid.
@@ -605,6 +612,14 @@ impl SweepSpec {
                 "seeds is {replicates}: use 1 to {MAX_REPLICATES} replicates per grid point"
             ));
         }
+        let finalists = self.finalists.as_ref().and_then(|f| {
+            f.resolve(
+                &search,
+                replicates,
+                w1_values.len() * w2_values.len(),
+                &mut problems,
+            )
+        });
         let cells = match search.generations() {
             Some((population, generations)) => population as usize * generations as usize,
             None => terrains.len().max(1) * w1_values.len() * w2_values.len(),
@@ -642,6 +657,7 @@ impl SweepSpec {
             eval_levels,
             score,
             search,
+            finalists,
         })
     }
 
@@ -937,7 +953,6 @@ fn one() -> u32 {
 /// Most replicates a grid point may have.
 pub const MAX_REPLICATES: u32 = 32;
 
-/// A well-mixed 64-bit hash, so neighbouring cells get unrelated seeds.
 /// Smallest and largest of `v` (NaN-free values; (inf, -inf) when empty).
 fn min_max(v: &[f64]) -> (f64, f64) {
     v.iter()
@@ -946,7 +961,8 @@ fn min_max(v: &[f64]) -> (f64, f64) {
         })
 }
 
-fn splitmix64(x: u64) -> u64 {
+/// A well-mixed 64-bit hash, so neighbouring cells get unrelated seeds.
+pub(crate) fn splitmix64(x: u64) -> u64 {
     let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);

@@ -294,6 +294,7 @@ fn spec() -> ResolvedSpec {
         eval_levels: vec![],
         score: Default::default(),
         search: Default::default(),
+        finalists: None,
     }
 }
 

@@ -2,6 +2,7 @@
 //! implements it on SQLite (the default) and PostgreSQL.
 
 pub mod backend;
+mod finalists;
 pub mod levels;
 pub mod progress_writer;
 pub mod rows;

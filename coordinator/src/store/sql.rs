@@ -7,6 +7,7 @@
 //! migrations (`migrations/` for SQLite, `migrations/postgres/`).
 
 use super::backend::{Backend, DatabaseUrl};
+use super::finalists;
 use super::progress_writer::{ProgressWriter, WriteSnapshot};
 use super::rows::{spec_of, CellRow, SweepRow, CELL_COLUMNS, SWEEP_COLUMNS};
 use super::search::{self, apply_asha, rung_result};
@@ -17,7 +18,7 @@ use crate::across;
 use crate::sched::{self, Candidate};
 use crate::{validate, Error, Result};
 use gaitsweep_core::records::{CellRecord, CheckpointRecord, PromotionRecord, SweepRecord};
-use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, SweepId, WorkerId};
+use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, SweepId, SweepState, WorkerId};
 use gaitsweep_model::GaitScore;
 use sqlx::any::{AnyConnectOptions, AnyPoolOptions, AnyRow};
 use sqlx::sqlite::SqliteConnectOptions;
@@ -282,6 +283,15 @@ pub(super) async fn finish_if_done(
     if !sched::sweep_finished(open as u32) {
         return Ok(None);
     }
+    let (spec_json, state): (String, String) =
+        sqlx::query_as("SELECT spec_json, state FROM sweeps WHERE id = $1")
+            .bind(sweep.0)
+            .fetch_one(&mut **tx)
+            .await?;
+    let spec = spec_of(&spec_json)?;
+    if state == SweepState::Running.as_str() && finalists::queue(tx, sweep, &spec).await? > 0 {
+        return Ok(None);
+    }
     let changed = sqlx::query(
         "UPDATE sweeps SET state = 'done', finished_unix_ms = $1 WHERE id = $2 AND state = 'running'",
     )
@@ -293,18 +303,19 @@ pub(super) async fn finish_if_done(
     if changed == 0 {
         return Ok(None);
     }
-    promote_across_terrains(tx, sweep, now_ms).await?;
+    finalists::promote(tx, sweep, &spec, now_ms).await?;
+    promote_across_terrains(tx, sweep, &spec, now_ms).await?;
     Ok(Some(sweep_tx(tx, sweep).await?))
 }
 
 /// When a grid over several terrains ends, promotes the point best across them
 /// ([`crate::across`]) as a `promotions` row with terrain `'*'`.
-async fn promote_across_terrains(tx: &mut Tx, sweep: SweepId, now_ms: i64) -> Result<()> {
-    let spec_json: String = sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = $1")
-        .bind(sweep.0)
-        .fetch_one(&mut **tx)
-        .await?;
-    let spec = spec_of(&spec_json)?;
+async fn promote_across_terrains(
+    tx: &mut Tx,
+    sweep: SweepId,
+    spec: &ResolvedSpec,
+    now_ms: i64,
+) -> Result<()> {
     if spec.terrains.len() < 2 || spec.search.generations().is_some() {
         return Ok(());
     }
@@ -408,6 +419,16 @@ async fn promote_point(
     cell: &CellRecord,
     now_ms: i64,
 ) -> Result<Vec<PromotionRecord>> {
+    if cell.replicate > 0 {
+        // A finalist's further seeds are promoted together when the sweep ends.
+        let spec_json: String = sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = $1")
+            .bind(cell.sweep_id.0)
+            .fetch_one(&mut **tx)
+            .await?;
+        if spec_of(&spec_json)?.finalists.is_some() {
+            return Ok(vec![]);
+        }
+    }
     let rows: Vec<(i64, String, Option<f64>)> = sqlx::query_as(
         "SELECT c.id, c.state, s.score FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
          WHERE c.sweep_id = $1 AND c.terrain_index = $2 AND c.w1_index = $3 AND c.w2_index = $4 ORDER BY c.id",

@@ -29,6 +29,7 @@ fn spec(w1: usize, w2: usize, terrains: Vec<TerrainKind>) -> ResolvedSpec {
         eval_levels: vec![],
         score: Default::default(),
         search: Default::default(),
+        finalists: None,
     }
 }
 
@@ -525,6 +526,83 @@ async fn replicates_promote_a_point_by_their_mean_once_all_are_done() {
     assert_eq!(best.cell.replicate, 0, "ties go to the lower id");
     let rec = store.sweep(sweep.id).await.unwrap();
     assert_eq!(rec.best_cell, Some(best.cell.id));
+}
+
+async fn finalists_get_more_seeds_and_the_best_mean_is_promoted() {
+    let (_d, store, w) = setup().await;
+    let mut s = spec(2, 2, vec![TerrainKind::Flat]);
+    s.finalists = Some(gaitsweep_core::finalists::Finalists { top: 2, seeds: 3 });
+    let sweep = store.create_sweep(&s, 0).await.unwrap();
+    assert_eq!(sweep.cells_total, 4, "the first pass is one seed per point");
+    // First pass: (0,0) 0.9 and (0,1) 0.8 are the finalists; their further seeds score
+    // 0.3, 0.3 (mean 0.5) and 0.7, 0.6 (mean 0.7).
+    let value = |c: &CellRecord| match (c.w1_index, c.w2_index, c.replicate) {
+        (0, 0, 0) => 0.9,
+        (0, 0, _) => 0.3,
+        (0, 1, 0) => 0.8,
+        (0, 1, 1) => 0.7,
+        (0, 1, _) => 0.6,
+        (1, 0, _) => 0.1,
+        _ => 0.2,
+    };
+    for _ in 0..4 {
+        let g = store.lease_next(&w, 0, 1).await.unwrap().unwrap();
+        let out = store
+            .report_result(g.lease, &score(value(&g.cell)), 3, None, 1)
+            .await
+            .unwrap();
+        assert!(out.finished.is_none(), "the finalists are still to train");
+    }
+    let cells = store.cells(sweep.id).await.unwrap();
+    assert_eq!(cells.len(), 8);
+    let mut replicated = s.clone();
+    replicated.finalists = None;
+    replicated.replicates = 3;
+    let twins = replicated.cells();
+    for c in cells.iter().filter(|c| c.replicate > 0) {
+        assert_eq!(c.w1_index, 0, "only the top 2 points get more seeds");
+        let twin = twins
+            .iter()
+            .find(|t| {
+                (t.w1_index as u32, t.w2_index as u32, t.replicate)
+                    == (c.w1_index, c.w2_index, c.replicate)
+            })
+            .unwrap();
+        assert_eq!(
+            c.seed, twin.seed,
+            "a finalist trains as a replicated grid would"
+        );
+    }
+    let mut finished = None;
+    while let Some(g) = store.lease_next(&w, 0, 2).await.unwrap() {
+        let out = store
+            .report_result(g.lease, &score(value(&g.cell)), 3, None, 2)
+            .await
+            .unwrap();
+        assert!(
+            out.promotions.is_empty(),
+            "finalists are promoted together at the end"
+        );
+        finished = finished.or(out.finished);
+    }
+    assert_eq!(finished.unwrap().state, SweepState::Done);
+    let best = store.promoted(sweep.id, None).await.unwrap();
+    assert_eq!(
+        (best.cell.w1_index, best.cell.w2_index, best.cell.replicate),
+        (0, 1, 0),
+        "mean 0.7 beats the lucky single 0.9 (mean 0.5); its best seed stands for it"
+    );
+    let (mean, ci95): (f64, Option<f64>) = sqlx::query_as(
+        "SELECT score, ci95 FROM promotions WHERE sweep_id = $1 AND terrain = '' ORDER BY id DESC LIMIT 1",
+    )
+    .bind(sweep.id.0)
+    .fetch_one(store.reader())
+    .await
+    .unwrap();
+    assert!((mean - 0.7).abs() < 1e-9);
+    assert!(ci95.unwrap() > 0.0);
+    let on_flat = store.promoted(sweep.id, Some("flat")).await.unwrap();
+    assert_eq!(on_flat.cell.id, best.cell.id);
 }
 
 /// Uploads a leased cell's checkpoint at the epoch it trains to and reports `s` there.
@@ -1043,6 +1121,7 @@ conformance!(
     released_attempts_requeue_at_once_and_do_not_count,
     reports_outside_the_cell_are_refused_and_change_nothing,
     replicates_promote_a_point_by_their_mean_once_all_are_done,
+    finalists_get_more_seeds_and_the_best_mean_is_promoted,
     successive_halving_continues_the_top_third_and_stops_the_rest,
     a_cell_failing_for_good_closes_the_rung_it_never_reached,
     the_evolutionary_search_queues_a_generation_when_the_last_one_ends,

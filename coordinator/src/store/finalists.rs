@@ -1,0 +1,99 @@
+//! The store's side of a grid's finalist stage ([`crate::finalists`]): queueing more seeds
+//! of the best points when the single-seed pass closes, and promoting among them when
+//! they close.
+
+use std::collections::BTreeSet;
+
+use gaitsweep_core::finalists::Point;
+use gaitsweep_core::{ResolvedSpec, SweepId};
+
+use super::search::insert_cells;
+use super::sql::Tx;
+use crate::across::ScoredCell;
+use crate::finalists;
+use crate::Result;
+
+/// Every scored cell of a sweep, in id order.
+async fn scored_cells(tx: &mut Tx, sweep: SweepId) -> Result<Vec<ScoredCell>> {
+    let rows: Vec<(i64, i64, i64, i64, f64)> = sqlx::query_as(
+        "SELECT c.id, c.terrain_index, c.w1_index, c.w2_index, s.score FROM cells c \
+         JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id",
+    )
+    .bind(sweep.0)
+    .fetch_all(&mut **tx)
+    .await?;
+    Ok(rows.into_iter().map(ScoredCell::from_row).collect())
+}
+
+/// The points that have cells past the first pass (replicate > 0): the finalists.
+async fn finalist_points(tx: &mut Tx, sweep: SweepId) -> Result<BTreeSet<Point>> {
+    let rows: Vec<(i64, i64, i64)> = sqlx::query_as(
+        "SELECT DISTINCT terrain_index, w1_index, w2_index FROM cells WHERE sweep_id = $1 AND replicate > 0",
+    )
+    .bind(sweep.0)
+    .fetch_all(&mut **tx)
+    .await?;
+    Ok(rows
+        .into_iter()
+        .map(|(t, i, j)| (t as usize, i as usize, j as usize))
+        .collect())
+}
+
+/// Called when no cell of a running sweep is open: queues the finalists' further seeds if
+/// the spec has a finalist stage that has not started. Returns how many cells it queued
+/// (0: the sweep may finish).
+pub(super) async fn queue(tx: &mut Tx, sweep: SweepId, spec: &ResolvedSpec) -> Result<usize> {
+    let Some(f) = spec.finalists else {
+        return Ok(0);
+    };
+    if !finalist_points(tx, sweep).await?.is_empty() {
+        return Ok(0);
+    }
+    let picked = finalists::pick(&scored_cells(tx, sweep).await?, f.top);
+    let cells = spec.finalist_cells(&picked);
+    insert_cells(tx, sweep, &cells, spec.epochs).await?;
+    tracing::info!(%sweep, points = picked.len(), cells = cells.len(), seeds = f.seeds,
+        "grid pass done: queued the finalists' further seeds");
+    Ok(cells.len())
+}
+
+/// Called once when a sweep with a finalist stage finishes: promotes the finalist with
+/// the best mean over its seeds, over all terrains and on each terrain, with its interval.
+/// These rows come last, so they are the sweep's promoted models whatever single runs of
+/// the first pass were promoted while it ran.
+pub(super) async fn promote(
+    tx: &mut Tx,
+    sweep: SweepId,
+    spec: &ResolvedSpec,
+    now_ms: i64,
+) -> Result<()> {
+    if spec.finalists.is_none() {
+        return Ok(());
+    }
+    let points = finalist_points(tx, sweep).await?;
+    let (overall, per_terrain) = finalists::winners(&scored_cells(tx, sweep).await?, &points);
+    let mut rows: Vec<(String, finalists::Winner)> = per_terrain
+        .into_iter()
+        .filter_map(|(t, w)| Some((spec.terrains.get(t)?.to_string(), w)))
+        .collect();
+    if let Some(w) = overall {
+        rows.push((String::new(), w));
+    }
+    for (terrain, w) in rows {
+        sqlx::query(
+            "INSERT INTO promotions (sweep_id, terrain, cell_id, score, promoted_unix_ms, ci95) \
+             VALUES ($1, $2, $3, $4, $5, $6)",
+        )
+        .bind(sweep.0)
+        .bind(&terrain)
+        .bind(w.cell.0)
+        .bind(w.stats.mean)
+        .bind(now_ms)
+        .bind(w.stats.ci95)
+        .execute(&mut **tx)
+        .await?;
+        tracing::info!(%sweep, terrain = %terrain, w1 = spec.w1_values[w.point.1], w2 = spec.w2_values[w.point.2],
+            mean = w.stats.mean, ci95 = w.stats.ci95, seeds = w.stats.n, "promoted the best finalist");
+    }
+    Ok(())
+}
