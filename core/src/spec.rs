@@ -415,7 +415,7 @@ impl SweepSpec {
                 }
                 Ok(k) => terrains.push(k),
                 Err(_) => problems.push(format!(
-                    "terrain {t:?} is unknown: use flat, rough, stairs or slopes"
+                    "terrain {t:?} is unknown: use flat, rough, stairs, slopes or mixed"
                 )),
             }
         }

@@ -18,11 +18,20 @@ pub enum TerrainKind {
     Stairs,
     /// Pyramid slopes, up for even robots, down for odd ones.
     Slopes,
+    /// legged_gym's mixed terrain: robots dealt to slopes, rough ground and stairs up and
+    /// down in legged_gym's proportions, all in one curriculum.
+    Mixed,
 }
 
 impl TerrainKind {
     /// All kinds.
-    pub const ALL: [TerrainKind; 4] = [Self::Flat, Self::Rough, Self::Stairs, Self::Slopes];
+    pub const ALL: [TerrainKind; 5] = [
+        Self::Flat,
+        Self::Rough,
+        Self::Stairs,
+        Self::Slopes,
+        Self::Mixed,
+    ];
 }
 
 impl fmt::Display for TerrainKind {
@@ -32,6 +41,7 @@ impl fmt::Display for TerrainKind {
             Self::Rough => "rough",
             Self::Stairs => "stairs",
             Self::Slopes => "slopes",
+            Self::Mixed => "mixed",
         })
     }
 }
@@ -44,8 +54,9 @@ impl FromStr for TerrainKind {
             "rough" => Ok(Self::Rough),
             "stairs" => Ok(Self::Stairs),
             "slopes" | "slope" => Ok(Self::Slopes),
+            "mixed" => Ok(Self::Mixed),
             other => Err(Error::InvalidArgument(format!(
-                "unknown terrain {other:?}; expected flat, rough, stairs or slopes"
+                "unknown terrain {other:?}; expected flat, rough, stairs, slopes or mixed"
             ))),
         }
     }

@@ -247,10 +247,12 @@ impl VecEnv {
 
     /// Names of the terrain variants robots are dealt in turn (robot `i` gets variant
     /// `i % len`), where the variants differ in kind: stairs and slopes start robots on
-    /// top of the pyramid or in its pit. Empty for flat and rough ground.
+    /// top of the pyramid or in its pit; the mixed terrain's tiles are named by their kind
+    /// (repeated names are counted together). Empty for flat and rough ground.
     pub fn variant_names(&self) -> &'static [&'static str] {
         match self.cfg.terrain {
             TerrainKind::Stairs | TerrainKind::Slopes => &["top", "pit"],
+            TerrainKind::Mixed => &crate::terrain::MIXED_NAMES,
             TerrainKind::Flat | TerrainKind::Rough => &[],
         }
     }

@@ -154,9 +154,9 @@ impl fmt::Debug for Tile {
 /// that a score measures walking on ground the policy has not seen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TerrainUse {
-    /// Training tiles (variants 0 and 1).
+    /// Training tiles (variants 0 and 1; mixed: 0..20).
     Train,
-    /// Evaluation tiles (variants 2 and 3).
+    /// Evaluation tiles (variants 2 and 3; mixed: 20..40).
     Eval,
 }
 
@@ -195,13 +195,74 @@ pub(crate) fn sub(v: f32) -> f32 {
     (v + SUB_TILE / 2.0).rem_euclid(SUB_TILE) - SUB_TILE / 2.0
 }
 
+/// The tiles of the mixed terrain, dealt to robots in turn: legged_gym's proportions
+/// (smooth slope 0.1, rough slope 0.1, stairs up 0.35, stairs down 0.25, discrete
+/// obstacles 0.2) over the kinds built here, in 20 tiles: a slope up and one down (0.1),
+/// six rough fields (0.3: legged_gym's rough slope and discrete obstacles, the kinds of
+/// uneven ground we have no separate generator for), seven stairs up (0.35) and five down
+/// (0.25). Each entry: kind and its up (0) or down (1) variant.
+pub const MIXED: [(TerrainKind, u32); 20] = {
+    use TerrainKind::{Rough as R, Slopes as P, Stairs as S};
+    [
+        (P, 0),
+        (P, 1),
+        (R, 0),
+        (S, 0),
+        (S, 1),
+        (S, 0),
+        (R, 0),
+        (S, 1),
+        (S, 0),
+        (R, 0),
+        (S, 1),
+        (S, 0),
+        (R, 0),
+        (S, 1),
+        (S, 0),
+        (R, 0),
+        (S, 1),
+        (S, 0),
+        (R, 0),
+        (S, 0),
+    ]
+};
+
+/// The name of each [`MIXED`] tile by its kind (robots on tiles of one name are counted
+/// together in the curriculum's per-variant levels).
+pub static MIXED_NAMES: [&str; 20] = {
+    let mut names = [""; 20];
+    let mut k = 0;
+    while k < 20 {
+        names[k] = match MIXED[k] {
+            (TerrainKind::Slopes, 0) => "slope_up",
+            (TerrainKind::Slopes, _) => "slope_down",
+            (TerrainKind::Stairs, 0) => "stairs_up",
+            (TerrainKind::Stairs, _) => "stairs_down",
+            _ => "rough",
+        };
+        k += 1;
+    }
+    names
+};
+
 /// Generates the tile of a kind at a level; `variant` picks up (even) or down (odd) for
-/// stairs and slopes, and the random field of rough terrain.
+/// stairs and slopes, and the random field of rough terrain; for the mixed terrain it picks
+/// the [`MIXED`] entry `variant % 20` (its rough fields seeded apart from rough's own).
 pub fn generate(kind: TerrainKind, level: u8, variant: u32) -> Tile {
+    if kind == TerrainKind::Mixed {
+        let (sub, up_down) = MIXED[variant as usize % MIXED.len()];
+        let v = match sub {
+            TerrainKind::Rough => 0x1000 + variant,
+            _ => up_down,
+        };
+        let t = generate(sub, level, v);
+        return Tile::new(TerrainKind::Mixed, level, t.grid);
+    }
     let p = LevelParams::at(level);
     let sign = if variant % 2 == 0 { 1.0 } else { -1.0 };
     let grid = match kind {
         TerrainKind::Flat => None,
+        TerrainKind::Mixed => unreachable!("mixed tiles are made of the other kinds above"),
         TerrainKind::Rough => {
             // legged_gym: uniform noise on a coarser grid (downsampled_scale 0.2 m), upsampled;
             // here one period of SUB_TILE metres repeated over the tile.
@@ -254,10 +315,14 @@ impl TerrainSet {
     /// Generates the tiles of `kind` (two variants: up/down, or two random fields) for
     /// training or for evaluation (random fields from disjoint seeds).
     pub fn new(kind: TerrainKind, usage: TerrainUse) -> TerrainSet {
-        let variants = if kind == TerrainKind::Flat { 1 } else { 2 };
+        let variants = match kind {
+            TerrainKind::Flat => 1,
+            TerrainKind::Mixed => MIXED.len() as u32,
+            _ => 2,
+        };
         let first = match usage {
             TerrainUse::Train => 0,
-            TerrainUse::Eval => 2,
+            TerrainUse::Eval => variants,
         };
         TerrainSet {
             tiles: (0..LEVELS)
@@ -364,6 +429,35 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn mixed_deals_legged_gyms_proportions() {
+        let count = |k: TerrainKind, v: u32| MIXED.iter().filter(|m| **m == (k, v)).count();
+        assert_eq!(
+            count(TerrainKind::Slopes, 0) + count(TerrainKind::Slopes, 1),
+            2
+        );
+        assert_eq!(count(TerrainKind::Rough, 0), 6);
+        assert_eq!(count(TerrainKind::Stairs, 0), 7);
+        assert_eq!(count(TerrainKind::Stairs, 1), 5);
+        let set = TerrainSet::new(TerrainKind::Mixed, TerrainUse::Train);
+        let row = &set.tiles[6];
+        assert_eq!(row.len(), 20);
+        let p = LevelParams::at(6);
+        // Tile 3 is stairs up, 4 stairs down, 0 a slope up: the platform heights show it.
+        assert!((row[3].height(0.0, 0.0) - 8.0 * p.step_height).abs() < 1e-4);
+        assert!((row[4].height(0.0, 0.0) + 8.0 * p.step_height).abs() < 1e-4);
+        assert!(row[0].height(0.0, 0.0) > 0.5);
+        assert!(row.iter().all(|t| t.kind == TerrainKind::Mixed));
+        let eval = TerrainSet::new(TerrainKind::Mixed, TerrainUse::Eval);
+        let rough = |t: &Tile| t.grid.as_ref().unwrap().h.clone();
+        assert_ne!(
+            rough(&row[2]),
+            rough(&eval.tiles[6][2]),
+            "evaluation draws its own fields"
+        );
+        assert_eq!(MIXED_NAMES[1], "slope_down");
     }
 
     #[test]

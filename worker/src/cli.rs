@@ -43,7 +43,7 @@ pub struct TrainArgs {
     /// Robot preset.
     #[arg(long, default_value = "anymal")]
     pub robot: String,
-    /// Terrain: flat, rough, stairs or slopes.
+    /// Terrain: flat, rough, stairs, slopes or mixed.
     #[arg(long, default_value = "flat")]
     pub terrain: TerrainKind,
     /// Fixed difficulty 0..=9 (default: curriculum).

@@ -69,19 +69,19 @@ pub fn boundary_seed(seed: u64, epoch: u32) -> u64 {
 /// (empty without names).
 pub fn variant_means(levels: &[u8], names: &[&'static str]) -> Vec<(&'static str, f64)> {
     let k = names.len();
-    names
-        .iter()
-        .enumerate()
-        .filter_map(|(v, &name)| {
-            let group: Vec<f64> = levels
-                .iter()
-                .skip(v)
-                .step_by(k)
-                .map(|&l| f64::from(l))
-                .collect();
-            (!group.is_empty()).then(|| (name, group.iter().sum::<f64>() / group.len() as f64))
-        })
-        .collect()
+    let mut out: Vec<(&'static str, f64, usize)> = Vec::new();
+    for (i, &l) in levels.iter().enumerate().filter(|_| k > 0) {
+        let name = names[i % k];
+        match out.iter_mut().find(|o| o.0 == name) {
+            Some(o) => {
+                o.1 += f64::from(l);
+                o.2 += 1;
+            }
+            None => out.push((name, f64::from(l), 1)),
+        }
+    }
+    out.sort_by_key(|o| names.iter().position(|n| *n == o.0));
+    out.into_iter().map(|(n, s, c)| (n, s / c as f64)).collect()
 }
 
 /// Drives one environment and one PPO learner epoch by epoch.
@@ -305,5 +305,8 @@ mod tests {
         assert_eq!(m, vec![("top", 1.0), ("pit", 5.0)]);
         assert!(variant_means(&levels, &[]).is_empty());
         assert_eq!(variant_means(&[], &["top", "pit"]), vec![]);
+        // Repeated names (the mixed terrain's tiles of one kind) are counted together.
+        let m = variant_means(&levels, &["rough", "stairs_up", "rough"]);
+        assert_eq!(m, vec![("rough", 8.0 / 3.0), ("stairs_up", 2.5)]);
     }
 }
