@@ -40,18 +40,26 @@ pub const TRAINER_METRICS: &[&str] = &[
     "wall_seconds",
 ];
 
-/// Metric names of an intermediate evaluation (every `eval.every` epochs).
-pub const EVAL_METRICS: &[&str] = &[
-    "eval/effort",
-    "eval/fall_rate",
-    "eval/mean_vel_error",
-    "eval/progress",
-    "eval/robots",
-    "eval/score",
-    "eval/seconds",
-    "eval/tilt",
-    "eval/track",
-];
+/// Metric names of an intermediate evaluation (every `eval.every` epochs) as a real worker
+/// logs it off flat ground: every score component overall and at each default evaluation
+/// level (`eval/level/<L>/...`), and the evaluation's wall time.
+pub fn eval_metric_names() -> Vec<String> {
+    use gaitsweep_model::{GaitScore, LevelScore};
+    let levels = gaitsweep_core::defaults::EVAL_LEVELS
+        .iter()
+        .map(|&level| LevelScore {
+            level,
+            score: GaitScore::default(),
+        })
+        .collect();
+    let mut names: Vec<String> = GaitScore::mean_of_levels(levels)
+        .eval_metrics()
+        .into_keys()
+        .collect();
+    names.push("eval/seconds".into());
+    names.sort();
+    names
+}
 
 /// One epoch's metrics as a simulated worker sends them: every trainer metric, plus the
 /// evaluation's when `eval` is set. Values vary with the worker and epoch so that no two
@@ -64,14 +72,14 @@ pub fn epoch_values(worker: usize, epoch: u32, eval: bool) -> BTreeMap<String, f
         .map(|(k, n)| (n.to_string(), base + k as f64))
         .collect();
     if eval {
-        for n in EVAL_METRICS {
-            let x = match *n {
+        for n in eval_metric_names() {
+            let x = match n.as_str() {
                 "eval/score" => (worker % 97) as f64 / 97.0,
                 "eval/robots" => 32.0,
                 "eval/seconds" => 10.0,
                 _ => 0.1,
             };
-            v.insert(n.to_string(), x);
+            v.insert(n, x);
         }
     }
     v
@@ -141,8 +149,12 @@ mod tests {
         let plain = epoch_values(3, 7, false);
         assert_eq!(plain.len(), TRAINER_METRICS.len());
         let eval = epoch_values(3, 7, true);
-        assert_eq!(eval.len(), TRAINER_METRICS.len() + EVAL_METRICS.len());
+        assert_eq!(
+            eval.len(),
+            TRAINER_METRICS.len() + eval_metric_names().len()
+        );
         assert!(eval.contains_key("eval/score"));
+        assert!(eval.contains_key("eval/level/7/overspeed"));
         assert_ne!(epoch_values(3, 8, false), plain);
     }
 

@@ -18,7 +18,7 @@
 use anyhow::{bail, Context};
 use clap::Parser;
 use gaitsweep_coordinator::loadgen::{
-    database_bytes, epoch_values, quantile, ProcUsage, EVAL_METRICS, TRAINER_METRICS,
+    database_bytes, epoch_values, eval_metric_names, quantile, ProcUsage, TRAINER_METRICS,
 };
 use gaitsweep_core::client::upload_messages;
 use gaitsweep_core::pb::{
@@ -356,7 +356,7 @@ async fn run(args: Args) -> anyhow::Result<()> {
         "rate                    1 epoch / {} ms each, {} metrics per epoch (+{} every {} epochs), a {} KB checkpoint every {} epochs",
         args.epoch_ms,
         TRAINER_METRICS.len(),
-        EVAL_METRICS.len(),
+        eval_metric_names().len(),
         args.eval_every,
         args.checkpoint_bytes / 1000,
         args.checkpoint_every
