@@ -59,6 +59,29 @@ mod tests {
     }
 
     #[test]
+    fn the_study_specs_are_table_1s_grids_on_rough_and_stairs() {
+        for (robot, w2, cells) in [("anymal", -10.0, 56), ("heavy", -20.0, 32)] {
+            let path = format!("{}/../studies/{robot}.toml", env!("CARGO_MANIFEST_DIR"));
+            let spec = SweepSpec::from_toml(&std::fs::read_to_string(&path).unwrap()).unwrap();
+            let r = resolve(&spec).unwrap();
+            assert_eq!(r.robot, robot);
+            assert_eq!(
+                r.cell_count(),
+                cells,
+                "{path}: Table 1's grid on two terrains"
+            );
+            assert_eq!((r.w1_values[0], r.w1_values[3]), (2.0, 12.0));
+            assert_eq!((r.w2_values[0], *r.w2_values.last().unwrap()), (w2, -2.0));
+            assert_eq!(r.eval_robots, 256, "issue 39: 256-robot evaluations");
+            assert_eq!(r.eval_levels_for("rough"), vec![0, 3, 5, 7]);
+            assert_eq!(
+                r.finalists,
+                Some(gaitsweep_core::finalists::Finalists { top: 4, seeds: 3 })
+            );
+        }
+    }
+
+    #[test]
     fn the_demo_spec_resolves_from_any_directory() {
         // The test runs in coordinator/: the spec's robot path is found in the source tree.
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/demo-sweep.toml");
