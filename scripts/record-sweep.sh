@@ -8,7 +8,8 @@
 #   scripts/record-sweep.sh DATA_DIR SPEC     # first run
 #   scripts/record-sweep.sh DATA_DIR          # resume
 #
-# GAITSWEEP_RECORD_WORKERS=N (default 2) one-core workers with one slot each.
+# GAITSWEEP_RECORD_WORKERS=N (default 2) one-core workers with one slot each, at nice
+# GAITSWEEP_RECORD_NICE (default 5), so that other work on the machine goes first.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 DATA="${1:?usage: scripts/record-sweep.sh DATA_DIR [SPEC]}"
@@ -36,7 +37,7 @@ wait_for_file "$DATA/coordinator.addr" || { echo "coordinator did not start; see
 export GAITSWEEP_URL="http://$(cat "$DATA/coordinator.addr")"
 WORKERS="${GAITSWEEP_RECORD_WORKERS:-2}"
 for i in $(seq 1 "$WORKERS"); do
-  "$BIN/worker" --connect "$GAITSWEEP_URL" --slots 1 --threads 1 --work-dir "$DATA/work-$i" >> "$DATA/worker-$i.log" 2>&1 &
+  nice -n "${GAITSWEEP_RECORD_NICE:-5}" "$BIN/worker" --connect "$GAITSWEEP_URL" --slots 1 --threads 1 --work-dir "$DATA/work-$i" >> "$DATA/worker-$i.log" 2>&1 &
   pids+=($!)
 done
 if [ "$fresh" = 1 ]; then
