@@ -10,6 +10,7 @@ pub mod finalists;
 pub mod ids;
 pub mod reason;
 pub mod records;
+pub mod search;
 pub mod spec;
 pub mod state;
 pub mod stats;
