@@ -4,6 +4,8 @@
 //! instead of SQLite's two-argument `MAX`; the methods below give the fragments that differ.
 
 use crate::{Error, Result};
+use sqlx::any::AnyPoolOptions;
+use sqlx::Connection;
 use std::fmt;
 
 /// The database behind a store.
@@ -195,6 +197,27 @@ pub fn now_ms() -> i64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_millis() as i64)
+}
+
+/// The one writer connection. A failed write (a full disk) can leave the connection inside
+/// a transaction that the database already rolled back, and every later BEGIN on it fails.
+/// The ping waits for the rollback queued when the failed transaction was dropped; a
+/// connection still in a transaction after it is replaced by a fresh one.
+pub(super) fn writer_pool() -> AnyPoolOptions {
+    AnyPoolOptions::new()
+        .max_connections(1)
+        .before_acquire(|conn, _| {
+            Box::pin(async move {
+                conn.ping().await?;
+                let healthy = !conn.is_in_transaction();
+                if !healthy {
+                    tracing::warn!(
+                        "writer connection left inside a failed transaction; opening a new one"
+                    );
+                }
+                Ok(healthy)
+            })
+        })
 }
 
 #[cfg(test)]

@@ -5,11 +5,13 @@ pub mod backend;
 mod finalists;
 pub mod levels;
 pub mod progress_writer;
+mod promotion;
 pub mod rows;
 mod search;
 pub mod sql;
 #[cfg(test)]
 mod tests;
+mod tx;
 
 use crate::Result;
 use gaitsweep_core::records::{

@@ -7,7 +7,7 @@
 
 use super::backend::{self, Backend};
 use super::search::record_periodic_eval;
-use super::sql::{lease_cell, refuse_closed};
+use super::tx::{lease_cell, refuse_closed};
 use crate::{validate, Error, Result};
 use gaitsweep_core::{CellId, LeaseId, SweepId};
 use sqlx::AnyPool;

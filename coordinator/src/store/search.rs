@@ -3,10 +3,10 @@
 //! ([`crate::evolution`]), applied inside the transaction that records a result or ends an
 //! attempt.
 
+use super::promotion::finish_if_done;
 use super::rows::spec_of;
-use super::sql::{
-    cell_tx, end_winning_attempt, finish_if_done, refuse_closed, require_uploaded, Tx,
-};
+use super::sql::Tx;
+use super::tx::{cell_tx, end_winning_attempt, refuse_closed, require_uploaded};
 use super::ResultOutcome;
 use crate::evolution::{self, EvolutionParams, NextStep, Optimizer};
 use crate::{asha, Error, Result};
