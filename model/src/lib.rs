@@ -4,6 +4,7 @@
 //! this crate, not the simulator.
 
 pub mod error;
+pub mod ppo_config;
 pub mod preset;
 pub mod score;
 pub mod terrain;

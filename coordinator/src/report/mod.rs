@@ -17,6 +17,7 @@
 mod html;
 mod plots;
 pub mod tensorboard;
+mod text;
 
 use crate::store::rows::{CellRow, CELL_COLUMNS};
 use crate::store::DatabaseUrl;
@@ -31,6 +32,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 pub use plots::{colormap, register_fonts};
+pub use text::{budget_text, eval_text};
 
 /// Name of the database file in a coordinator's data dir.
 pub const DB_FILE: &str = "gaitsweep.sqlite";
@@ -299,84 +301,6 @@ pub async fn open_db(data_dir: &Path, database: Option<&str>) -> anyhow::Result<
         .connect(opts.as_str())
         .await
         .with_context(|| format!("open {} read-only", url.display()))
-}
-
-/// The budget a sweep was given, in words: robots and epochs per cell, how the search spends
-/// them, replicates, the evaluation rollout and any PPO overrides.
-pub fn budget_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
-    use gaitsweep_core::Search;
-    let search = match spec.search {
-        Search::Grid => "every cell trains all its epochs".to_string(),
-        Search::Asha { reduction, .. } => format!(
-            "successive halving (ASHA, reduction {reduction}) with rungs at epochs {}",
-            spec.rungs()
-                .iter()
-                .map(u32::to_string)
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-        Search::Cmaes {
-            population,
-            generations,
-            ..
-        } => format!("CMA-ES, {generations} generations of {population} candidates"),
-        Search::Genetic {
-            population,
-            generations,
-            ..
-        } => format!(
-            "a genetic algorithm over the grid's points, up to {generations} generations of {population} candidates"
-        ),
-    };
-    let ppo = if spec.ppo_overrides.is_empty() {
-        String::new()
-    } else {
-        let o: Vec<String> = spec
-            .ppo_overrides
-            .iter()
-            .map(|(k, v)| format!("{k} = {v}"))
-            .collect();
-        format!("; PPO overrides: {}", o.join(", "))
-    };
-    format!(
-        "{} robots per cell, up to {} PPO epochs per cell ({search}), {} seed{} per grid point; \
-         evaluation: {}{ppo}",
-        spec.agents_per_cell,
-        spec.epochs,
-        spec.replicates,
-        if spec.replicates == 1 { "" } else { "s" },
-        eval_text(spec),
-    )
-}
-
-/// What a sweep's score measures, in words: the rollout, the levels per terrain and the
-/// progress term.
-pub fn eval_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
-    let levels: Vec<String> = spec
-        .terrains
-        .iter()
-        .map(|t| {
-            let l = spec.eval_levels_for(&t.to_string());
-            let l: Vec<String> = l.iter().map(u8::to_string).collect();
-            format!(
-                "{t} at level{} {}",
-                if l.len() == 1 { "" } else { "s" },
-                l.join(", ")
-            )
-        })
-        .collect();
-    format!(
-        "deterministic policy, {} robots x {} s at each level, {}; the score is the mean over the levels; \
-         progress term: {}",
-        spec.eval_robots,
-        spec.eval_seconds,
-        levels.join("; "),
-        match spec.score {
-            gaitsweep_model::ScoreVariant::Eq4 => "Eq. 4's (sum of squared step displacements)",
-            gaitsweep_model::ScoreVariant::Bounded =>
-                "bounded (each step's displacement capped at its commanded distance)",
-        }
-    )
 }
 
 /// Loads everything the report of `sweep` shows.

@@ -1,0 +1,85 @@
+//! A sweep's budget and evaluation in words, for the report, `show` and the live page.
+
+/// The budget a sweep was given, in words: robots and epochs per cell, how the search spends
+/// them, replicates, the evaluation rollout and any PPO overrides.
+pub fn budget_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
+    use gaitsweep_core::Search;
+    let search = match spec.search {
+        Search::Grid => "every cell trains all its epochs".to_string(),
+        Search::Asha { reduction, .. } => format!(
+            "successive halving (ASHA, reduction {reduction}) with rungs at epochs {}",
+            spec.rungs()
+                .iter()
+                .map(u32::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        Search::Cmaes {
+            population,
+            generations,
+            ..
+        } => format!("CMA-ES, {generations} generations of {population} candidates"),
+        Search::Genetic {
+            population,
+            generations,
+            ..
+        } => format!(
+            "a genetic algorithm over the grid's points, up to {generations} generations of {population} candidates"
+        ),
+    };
+    let ppo = if spec.ppo_overrides.is_empty() {
+        String::new()
+    } else {
+        let o: Vec<String> = spec
+            .ppo_overrides
+            .iter()
+            .map(|(k, v)| format!("{k} = {v}"))
+            .collect();
+        format!("; PPO overrides: {}", o.join(", "))
+    };
+    let finalists = spec.finalists.map_or(String::new(), |f| {
+        format!(
+            ", then the top {} points of each terrain {} seeds each (finalists; the promoted point is the finalist with the best mean)",
+            f.top, f.seeds
+        )
+    });
+    format!(
+        "{} robots per cell, up to {} PPO epochs per cell ({search}), {} seed{} per grid point{finalists}; \
+         evaluation: {}{ppo}",
+        spec.agents_per_cell,
+        spec.epochs,
+        spec.replicates,
+        if spec.replicates == 1 { "" } else { "s" },
+        eval_text(spec),
+    )
+}
+
+/// What a sweep's score measures, in words: the rollout, the levels per terrain and the
+/// progress term.
+pub fn eval_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
+    let levels: Vec<String> = spec
+        .terrains
+        .iter()
+        .map(|t| {
+            let l = spec.eval_levels_for(&t.to_string());
+            let l: Vec<String> = l.iter().map(u8::to_string).collect();
+            format!(
+                "{t} at level{} {}",
+                if l.len() == 1 { "" } else { "s" },
+                l.join(", ")
+            )
+        })
+        .collect();
+    format!(
+        "deterministic policy, {} robots x {} s at each level, {}; the score is the mean over the levels; \
+         progress term: {}",
+        spec.eval_robots,
+        spec.eval_seconds,
+        levels.join("; "),
+        match spec.score {
+            gaitsweep_model::ScoreVariant::Eq4 => "Eq. 4's (sum of squared step displacements)",
+            gaitsweep_model::ScoreVariant::Bounded =>
+                "bounded (each step's displacement capped at its commanded distance)",
+        }
+    )
+}
