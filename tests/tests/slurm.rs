@@ -389,6 +389,12 @@ async fn sbatch_workers_give_cells_back_on_scancel_and_the_sweep_completes() {
     )
     .await;
     assert_eq!(state, "COMPLETED", "{}", tail(&read(&out2), 20));
+    let scratch = jobs_dir.join(format!("gaitsweep-worker-{job2}"));
+    assert!(
+        !scratch.exists(),
+        "job 2 removed its scratch {} when its workers stopped",
+        scratch.display()
+    );
     let states: Vec<String> = sqlx::query_scalar("SELECT state FROM attempts ORDER BY id")
         .fetch_all(&db)
         .await
