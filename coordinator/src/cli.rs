@@ -678,4 +678,29 @@ mod tests {
             "{text}"
         );
     }
+
+    #[test]
+    fn finalists_are_marked_among_themselves() {
+        // Point w1 = 2 had the best single run (0.9) but is no finalist here; point w1 = 8
+        // is, with seeds 0.6 and 0.5: the terrain's best (+) is the finalist, not the 0.9.
+        let sweep = pb::Sweep {
+            sweep_id: 1,
+            spec: Some(pb::SweepSpec {
+                terrains: vec!["flat".into()],
+                seeds: 1,
+                finalists_top: 1,
+                finalists_seeds: 2,
+                ..Default::default()
+            }),
+            w1_values: vec![2.0, 8.0],
+            w2_values: vec![-6.0],
+            ..Default::default()
+        };
+        let cells = [cell(1, 0, 0, 0.9), cell(3, 1, 0, 0.6), cell(4, 1, 1, 0.5)];
+        let text = render_show(&sweep, &cells);
+        assert!(text.contains("finalists: the top 1 points"), "{text}");
+        assert!(text.contains("0.900±0.000/ 25% "), "{text}");
+        assert!(text.contains("0.550±"), "{text}");
+        assert!(text.contains("/ 25%+"), "{text}");
+    }
 }
