@@ -1,11 +1,13 @@
 //! The coordinator's view of the robot presets on disk: a sweep spec is validated against
-//! the preset it names (the robot exists, PPO overrides name real hyper-parameters) and
+//! the preset it names (the robot exists; PPO overrides name real hyper-parameters and fit
+//! every terrain's cells, as `CellSettings::resolve` will decide them on the worker) and
 //! takes the preset's Table-1 grid for what it leaves unset. Only the preset file is read
 //! (`gaitsweep_model`); the URDF is the workers' business.
 
 use gaitsweep_core::spec::PresetGrid;
 use gaitsweep_core::{Axis, ResolvedSpec, SweepSpec};
 use gaitsweep_model::preset::{AxisSpec, PresetFile};
+use gaitsweep_model::{CellSettings, TerrainKind};
 
 fn axis(a: &AxisSpec) -> Axis {
     Axis::Range {
@@ -20,9 +22,19 @@ fn axis(a: &AxisSpec) -> Axis {
 pub fn resolve(spec: &SweepSpec) -> gaitsweep_core::Result<ResolvedSpec> {
     spec.resolve_with(|robot| {
         let preset = PresetFile::load(robot).map_err(|e| e.to_string())?;
-        let mut ppo = preset.ppo.clone();
-        let override_problem = ppo.apply_overrides(&spec.ppo).err().map(|e| e.to_string());
         let g = &preset.grid;
+        // Overrides are checked against what each terrain's cells will really train with
+        // (terrain tables, then overrides, then the schedule over the cell's budget).
+        let budget = spec.epochs.unwrap_or(g.epochs);
+        let override_problem = spec
+            .terrains
+            .iter()
+            .filter_map(|t| t.parse::<TerrainKind>().ok())
+            .find_map(|t| {
+                CellSettings::resolve(preset.settings(), t, &spec.ppo, budget)
+                    .err()
+                    .map(|e| format!("on {t}: {e}"))
+            });
         let grid = PresetGrid {
             w1: axis(&g.w1),
             w2: axis(&g.w2),
@@ -56,6 +68,17 @@ mod tests {
         )
         .unwrap();
         assert!(resolve(&bad_ppo).unwrap_err().to_string().contains("bogus"));
+        // The preset anneals by fractions of the budget: a schedule in epochs on top of it
+        // would fail on every worker, so the sweep is refused when it is created.
+        let clash = SweepSpec::from_toml(
+            "robot = \"anymal\"\nterrains = [\"rough\"]\npreset_grid = true\nppo = { noise_decay_start = 300 }\n",
+        )
+        .unwrap();
+        let e = resolve(&clash).unwrap_err().to_string();
+        assert!(
+            e.contains("on rough") && e.contains("both in epochs"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -4,7 +4,6 @@
 
 pub mod client;
 pub mod convert;
-pub mod defaults;
 pub mod error;
 pub mod finalists;
 pub mod ids;
@@ -17,6 +16,8 @@ pub mod stats;
 pub mod tensorboard;
 
 pub use error::{Error, Result};
+/// Every default, decided once (`gaitsweep_model::defaults`).
+pub use gaitsweep_model::defaults;
 pub use ids::{CellId, LeaseId, SweepId, WorkerId};
 pub use spec::{Axis, CellPlan, ResolvedSpec, Search, SearchSpec, SweepSpec};
 pub use state::{CellState, SweepState};

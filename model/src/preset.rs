@@ -549,6 +549,17 @@ impl PresetFile {
         Ok((file, texts))
     }
 
+    /// The parts of this preset that decide a cell's settings
+    /// ([`crate::CellSettings::resolve`]).
+    pub fn settings(&self) -> crate::cell_settings::PresetSettings<'_> {
+        crate::cell_settings::PresetSettings {
+            ppo: &self.ppo,
+            domain_rand: &self.domain_rand,
+            reward: &self.reward,
+            by_terrain: &self.terrain,
+        }
+    }
+
     /// The `ppo`, `domain_rand` and `reward` of a cell on `terrain` (see [`settings_on`]).
     pub fn settings_on(&self, terrain: TerrainKind) -> Result<TerrainSettings> {
         settings_on(

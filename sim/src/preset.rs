@@ -208,8 +208,39 @@ impl Preset {
         })
     }
 
-    /// This preset as a cell on `terrain` trains it: `ppo`, `domain_rand` and `reward` with
-    /// the terrain's `[terrain.<kind>.*]` tables laid over them (checked when it was loaded).
+    /// The parts of this preset that decide a cell's settings
+    /// ([`gaitsweep_model::CellSettings::resolve`]).
+    pub fn settings(&self) -> gaitsweep_model::cell_settings::PresetSettings<'_> {
+        gaitsweep_model::cell_settings::PresetSettings {
+            ppo: &self.ppo,
+            domain_rand: &self.domain_rand,
+            reward: &self.reward,
+            by_terrain: &self.terrain,
+        }
+    }
+
+    /// This preset as a cell on `terrain` with `budget` epochs trains with it: `ppo`,
+    /// `domain_rand` and `reward` as [`gaitsweep_model::CellSettings::resolve`] decides them
+    /// (terrain tables, then `overrides`, then the schedule in epochs of `budget`).
+    pub fn for_cell(
+        &self,
+        terrain: TerrainKind,
+        overrides: &std::collections::BTreeMap<String, f64>,
+        budget: u32,
+    ) -> Result<Preset> {
+        let cell =
+            gaitsweep_model::CellSettings::resolve(self.settings(), terrain, overrides, budget)?;
+        Ok(Preset {
+            ppo: cell.ppo,
+            domain_rand: cell.domain_rand,
+            reward: cell.reward,
+            ..self.clone()
+        })
+    }
+
+    /// This preset's `ppo`, `domain_rand` and `reward` with the terrain's
+    /// `[terrain.<kind>.*]` tables laid over them (checked when it was loaded), before any
+    /// override or schedule: what [`Preset::for_cell`] starts from.
     pub fn on_terrain(&self, terrain: TerrainKind) -> Result<Preset> {
         let TerrainSettings {
             ppo,

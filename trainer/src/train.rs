@@ -5,9 +5,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use gaitsweep_sim::{
-    EnvConfig, EvalConfig, GaitScore, PpoConfig, Preset, ScoreVariant, TerrainKind, VecEnv,
-};
+pub use gaitsweep_sim::model::EvalSettings;
+use gaitsweep_sim::{EnvConfig, EvalConfig, GaitScore, PpoConfig, Preset, TerrainKind, VecEnv};
 use serde::{Deserialize, Serialize};
 
 use crate::checkpoint::{self, Checkpoint, CheckpointMeta, NormalizerMeta, OptimizerMeta, RngMeta};
@@ -15,14 +14,7 @@ use crate::export::ControlInfo;
 use crate::ppo::{runner::boundary_seed, EpochStats, Ppo, PpoParams, Runner, StepView, VecEnvLike};
 use crate::{Error, Result};
 
-/// Difficulty at which a curriculum-trained cell was evaluated before evaluations covered
-/// several levels (the middle of 0..=9): the level of `worker eval` on a checkpoint when no
-/// level is given, and of sweeps stored before per-level evaluation.
-pub const CURRICULUM_EVAL_DIFFICULTY: u8 = 5;
-
-/// Seed of every evaluation rollout: the same spawns and command schedule for every cell
-/// and run, so that scores compare across the grid and a checkpoint always scores the same.
-pub const EVAL_SEED: u64 = 0x5EED_E7A1;
+pub use gaitsweep_sim::model::defaults::{CURRICULUM_EVAL_DIFFICULTY, EVAL_SEED};
 
 /// Everything that defines one cell's training run.
 #[derive(Clone, Debug)]
@@ -57,17 +49,9 @@ pub struct CellRunConfig {
     pub resume_from: Option<PathBuf>,
     /// PPO hyperparameters replacing the preset's (`learning_rate = 3e-4`, ...).
     pub ppo_overrides: BTreeMap<String, f64>,
-    /// Robots of the final evaluation, at each level.
-    pub eval_robots: usize,
-    /// Difficulty levels of every evaluation; the score is the mean over them.
-    pub eval_levels: Vec<u8>,
-    /// The progress term of the composite score.
-    pub score: ScoreVariant,
-    /// Episode length of the final evaluation (s).
-    pub eval_seconds: f32,
-    /// Evaluate the deterministic policy every this many epochs as well and log it as
-    /// `eval/*` (0: only the final evaluation).
-    pub eval_every: u32,
+    /// How the policy is scored: at the end, and every `eval.every` epochs as well (logged
+    /// as `eval/*`).
+    pub eval: EvalSettings,
 }
 
 /// Per-epoch metrics: every reward term mean (`reward/<term>`), losses, KL, learning rate,
@@ -102,14 +86,6 @@ pub struct CellOutcome {
     pub final_checkpoint: PathBuf,
     /// Epochs completed.
     pub epochs: u32,
-}
-
-/// Options of a run that are not part of the cell's identity.
-#[derive(Clone, Debug, Default)]
-pub struct TrainOptions {
-    /// Robots of the intermediate evaluations (`CellRunConfig::eval_every`; default:
-    /// `eval_robots`).
-    pub eval_robots: Option<usize>,
 }
 
 /// The preset's PPO table as the trainer's parameters.
@@ -188,17 +164,8 @@ fn validate(cfg: &CellRunConfig, p: &PpoParams) -> Result<()> {
     if cfg.checkpoint_every == 0 {
         return bad("checkpoint_every must be at least 1".into());
     }
-    if let Some(l) = cfg.eval_levels.iter().find(|l| **l > 9) {
-        return bad(format!("evaluation level {l} is out of range: use 0 to 9"));
-    }
-    if cfg.eval_levels.is_empty() {
-        return bad("the evaluation needs at least one difficulty level".into());
-    }
-    if cfg.eval_robots == 0 || !(cfg.eval_seconds.is_finite() && cfg.eval_seconds > 0.0) {
-        return bad(format!(
-            "the evaluation needs at least 1 robot and a positive length, got {} robots x {} s",
-            cfg.eval_robots, cfg.eval_seconds
-        ));
+    if let Some(problem) = cfg.eval.problem() {
+        return bad(problem);
     }
     if p.num_mini_batches == 0 || p.num_learning_epochs == 0 || p.steps_per_env == 0 {
         return bad(
@@ -274,26 +241,16 @@ pub fn epoch_metrics(s: &EpochStats, wall_seconds: f64) -> EpochMetrics {
 }
 
 /// Deterministic evaluation of the current policy.
-fn eval_policy(
-    preset: &Preset,
-    cfg: &CellRunConfig,
-    ppo: &Ppo,
-    robots: usize,
-) -> Result<GaitScore> {
+fn eval_policy(preset: &Preset, cfg: &CellRunConfig, ppo: &Ppo) -> Result<GaitScore> {
     let ecfg = EvalConfig {
         terrain: cfg.terrain,
-        levels: cfg.eval_levels.clone(),
-        num_robots: robots,
-        episode_seconds: cfg.eval_seconds,
+        levels: cfg.eval.levels.clone(),
+        num_robots: cfg.eval.robots,
+        episode_seconds: cfg.eval.seconds,
         seed: EVAL_SEED,
-        score: cfg.score,
+        score: cfg.eval.score,
     };
     crate::evaluate::score_policy(preset, cfg.w1, cfg.w2, &ecfg, ppo, 0.0)
-}
-
-/// Trains one cell (see [`train_cell_with`]) with default options.
-pub fn train_cell(cfg: &CellRunConfig, observer: &mut dyn TrainObserver) -> Result<CellOutcome> {
-    train_cell_with(cfg, &TrainOptions::default(), observer)
 }
 
 /// Trains one cell: resumes from `cfg.resume_from` if set, writes a checkpoint every
@@ -305,21 +262,14 @@ pub fn train_cell(cfg: &CellRunConfig, observer: &mut dyn TrainObserver) -> Resu
 /// same libtorch thread count). A resumed run restores the networks, optimiser, observation
 /// statistics and curriculum levels, but its robots start new episodes, as legged_gym's
 /// resume does, so it does not replay the uninterrupted run bit for bit.
-pub fn train_cell_with(
-    cfg: &CellRunConfig,
-    opts: &TrainOptions,
-    observer: &mut dyn TrainObserver,
-) -> Result<CellOutcome> {
-    let preset = Preset::load(&cfg.robot)?.on_terrain(cfg.terrain)?;
-    let mut pcfg = preset.ppo.clone();
-    pcfg.apply_overrides(&cfg.ppo_overrides)?;
+pub fn train_cell(cfg: &CellRunConfig, observer: &mut dyn TrainObserver) -> Result<CellOutcome> {
     let budget = if cfg.budget_epochs == 0 {
         cfg.epochs
     } else {
         cfg.budget_epochs
     };
-    pcfg.resolve_schedule(budget)?;
-    let params = ppo_params(&pcfg);
+    let preset = Preset::load(&cfg.robot)?.for_cell(cfg.terrain, &cfg.ppo_overrides, budget)?;
+    let params = ppo_params(&preset.ppo);
     validate(cfg, &params)?;
     std::fs::create_dir_all(&cfg.out_dir)
         .map_err(Error::io(format!("create {}", cfg.out_dir.display())))?;
@@ -422,14 +372,11 @@ pub fn train_cell_with(
         }
         let stats = runner.run_epoch()?;
         let mut m = epoch_metrics(&stats, t0.elapsed().as_secs_f64());
-        if cfg.eval_every > 0 && runner.epoch % cfg.eval_every == 0 {
+        if cfg.eval.every > 0 && runner.epoch % cfg.eval.every == 0 {
             let te = Instant::now();
-            let robots = opts.eval_robots.unwrap_or(cfg.eval_robots);
-            let s = eval_policy(&preset, cfg, &runner.ppo, robots)?;
-            if robots == cfg.eval_robots {
-                // The final evaluation is this one when the last epoch lands here.
-                last_eval = Some((runner.epoch, s.clone()));
-            }
+            let s = eval_policy(&preset, cfg, &runner.ppo)?;
+            // The final evaluation is this one when the last epoch lands here.
+            last_eval = Some((runner.epoch, s.clone()));
             m.values.extend(s.eval_metrics());
             m.values
                 .insert("eval/seconds".into(), te.elapsed().as_secs_f64());
@@ -452,7 +399,7 @@ pub fn train_cell_with(
 
     let score = match last_eval {
         Some((epoch, s)) if epoch == runner.epoch => s,
-        _ => eval_policy(&preset, cfg, &runner.ppo, cfg.eval_robots)?,
+        _ => eval_policy(&preset, cfg, &runner.ppo)?,
     };
     let score_path = cfg.out_dir.join("score.json");
     let json = serde_json::to_string_pretty(&score).expect("score serialises");

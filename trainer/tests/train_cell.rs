@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use gaitsweep_sim::{ScoreVariant, TerrainKind};
 use gaitsweep_trainer::checkpoint::Checkpoint;
 use gaitsweep_trainer::evaluate::{eval, EvalOptions};
-use gaitsweep_trainer::train::{train_cell, CellRunConfig, EpochMetrics, TrainObserver};
+use gaitsweep_trainer::train::{
+    train_cell, CellRunConfig, EpochMetrics, EvalSettings, TrainObserver,
+};
 
 #[derive(Default)]
 struct Collect {
@@ -48,11 +50,13 @@ fn cfg(out: &Path, epochs: u32, resume: Option<PathBuf>) -> CellRunConfig {
             .iter()
             .map(|(k, v)| (k.to_string(), *v))
             .collect::<BTreeMap<_, _>>(),
-        eval_robots: 2,
-        eval_seconds: 1.0,
-        eval_levels: vec![0],
-        score: ScoreVariant::Eq4,
-        eval_every: 0,
+        eval: EvalSettings {
+            robots: 2,
+            seconds: 1.0,
+            levels: vec![0],
+            score: ScoreVariant::Eq4,
+            every: 0,
+        },
     }
 }
 
@@ -353,8 +357,8 @@ fn a_rough_cell_is_scored_as_the_mean_over_its_evaluation_levels() {
     let mut c = cfg(&dir.path().join("rough"), 1, None);
     c.terrain = TerrainKind::Rough;
     c.difficulty = None;
-    c.eval_levels = vec![0, 7];
-    c.eval_every = 1;
+    c.eval.levels = vec![0, 7];
+    c.eval.every = 1;
     let mut obs = Collect::default();
     let out = train_cell(&c, &mut obs).unwrap();
     let s = &out.score;
@@ -366,8 +370,8 @@ fn a_rough_cell_is_scored_as_the_mean_over_its_evaluation_levels() {
     assert_eq!(m["eval/level/7/score"], s.levels[1].score.score);
     assert_eq!(m["eval/score"], s.score);
     // The bounded variant scores the same rollout with the capped progress term.
-    c.eval_levels = vec![7];
-    c.score = ScoreVariant::Bounded;
+    c.eval.levels = vec![7];
+    c.eval.score = ScoreVariant::Bounded;
     c.out_dir = dir.path().join("bounded");
     let b = train_cell(&c, &mut Collect::default()).unwrap().score;
     let l7 = &s.levels[1].score;

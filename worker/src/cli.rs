@@ -14,7 +14,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::{Error, Result};
 use gaitsweep_trainer::ppo::{Ppo, Runner};
 use gaitsweep_trainer::train::{
-    self, CellRunConfig, EpochMetrics, SimEnv, TrainObserver, TrainOptions,
+    self, CellRunConfig, EpochMetrics, EvalSettings, SimEnv, TrainObserver,
 };
 
 pub use gaitsweep_trainer::device::{configure_threads, parse_device, DEFAULT_TORCH_THREADS};
@@ -201,11 +201,13 @@ pub fn train(a: TrainArgs) -> Result<()> {
         out_dir: a.out.clone(),
         resume_from: a.resume.clone(),
         ppo_overrides: parse_overrides(&a.set)?,
-        eval_robots: a.eval_robots,
-        eval_seconds: a.eval_seconds,
-        eval_levels: gaitsweep_core::defaults::eval_levels(a.terrain, a.difficulty, &a.eval_levels),
-        score: a.score,
-        eval_every: a.eval_every.unwrap_or(0),
+        eval: EvalSettings {
+            robots: a.eval_robots,
+            seconds: a.eval_seconds,
+            levels: gaitsweep_core::defaults::eval_levels(a.terrain, a.difficulty, &a.eval_levels),
+            score: a.score,
+            every: a.eval_every.unwrap_or(0),
+        },
     };
     let start = match &cfg.resume_from {
         Some(p) => {
@@ -216,8 +218,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         None => 0,
     };
     let mut obs = LocalObserver::new(&cfg.out_dir, start, cfg.epochs, a.quiet)?;
-    let opts = TrainOptions { eval_robots: None };
-    let outcome = train::train_cell_with(&cfg, &opts, &mut obs)?;
+    let outcome = train::train_cell(&cfg, &mut obs)?;
     obs.bar.finish();
     let s = &outcome.score;
     println!(
@@ -295,13 +296,8 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     let preset = Preset::load(&a.robot)?;
     let agents = a.agents.unwrap_or(preset.grid.agents_per_cell);
     let overrides = parse_overrides(&a.set)?;
-    let params_on = |p: &Preset| -> Result<_> {
-        let mut pcfg = p.ppo.clone();
-        pcfg.apply_overrides(&overrides)?;
-        pcfg.resolve_schedule(a.epochs + 1)?;
-        Ok(train::ppo_params(&pcfg))
-    };
-    let params = params_on(&preset)?;
+    let budget = a.epochs + 1;
+    let params = train::ppo_params(&preset.for_cell(TerrainKind::Flat, &overrides, budget)?.ppo);
     let mid = |v: Vec<f64>| v.iter().sum::<f64>() / v.len() as f64;
     let (w1, w2) = (mid(preset.grid.w1.values()), mid(preset.grid.w2.values()));
     println!(
@@ -310,8 +306,8 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         tch::get_num_threads(), cores()
     );
     for terrain in &a.terrain {
-        let preset = preset.on_terrain(*terrain)?;
-        let params = params_on(&preset)?;
+        let preset = preset.for_cell(*terrain, &overrides, budget)?;
+        let params = train::ppo_params(&preset.ppo);
         let env = VecEnv::new(
             &preset,
             EnvConfig {

@@ -1,9 +1,19 @@
 //! Every default a sweep or a local training run falls back to, decided here once. A
-//! sweep's defaults are filled in when it is created ([`crate::SweepSpec::resolve`]), so the
-//! stored spec and the tasks sent to workers carry concrete values; `worker train` and
-//! `worker eval` use the same constants for their flags.
+//! sweep's defaults are filled in when it is created (`gaitsweep_core::SweepSpec::resolve`),
+//! so the stored spec and the tasks sent to workers carry concrete values; `worker train`,
+//! `worker eval` and the trainer use the same constants (this module is re-exported as
+//! `gaitsweep_core::defaults`).
 
-use gaitsweep_model::TerrainKind;
+use crate::TerrainKind;
+
+/// Seed of every evaluation rollout: the same spawns and command schedule for every cell
+/// and run, so that scores compare across the grid and a checkpoint always scores the same.
+pub const EVAL_SEED: u64 = 0x5EED_E7A1;
+
+/// Difficulty at which a curriculum-trained cell was evaluated before evaluations covered
+/// several levels (the middle of 0..=9): the level of `worker eval` on a checkpoint when no
+/// level is given, and of sweeps stored before per-level evaluation.
+pub const CURRICULUM_EVAL_DIFFICULTY: u8 = 5;
 
 /// Robots of the evaluation rollout that gives the gait score.
 pub const EVAL_ROBOTS: usize = 64;
