@@ -67,20 +67,10 @@ impl GaitScore {
         let n = levels.len().max(1) as f64;
         let mut m = GaitScore::default();
         for l in &levels {
-            let s = &l.score;
-            m.score += s.score / n;
-            m.track += s.track / n;
-            m.effort += s.effort / n;
-            m.tilt += s.tilt / n;
-            m.progress += s.progress / n;
-            m.progress_bounded += s.progress_bounded / n;
-            m.fall_rate += s.fall_rate / n;
-            m.mean_vel_error += s.mean_vel_error / n;
-            m.mean_speed += s.mean_speed / n;
-            m.overspeed += s.overspeed / n;
-            m.mean_abs_torque += s.mean_abs_torque / n;
-            m.cost_of_transport += s.cost_of_transport / n;
-            m.robots += s.robots;
+            for ((_, sum), (_, v)) in m.components_mut().into_iter().zip(l.score.components()) {
+                *sum += v / n;
+            }
+            m.robots += l.score.robots;
         }
         m.levels = levels;
         m
@@ -102,6 +92,24 @@ impl GaitScore {
             ("overspeed", self.overspeed),
             ("mean_abs_torque", self.mean_abs_torque),
             ("cost_of_transport", self.cost_of_transport),
+        ]
+    }
+
+    /// [`GaitScore::components`] as places to write, in the same order.
+    pub fn components_mut(&mut self) -> [(&'static str, &mut f64); 12] {
+        [
+            ("score", &mut self.score),
+            ("track", &mut self.track),
+            ("effort", &mut self.effort),
+            ("tilt", &mut self.tilt),
+            ("progress", &mut self.progress),
+            ("progress_bounded", &mut self.progress_bounded),
+            ("fall_rate", &mut self.fall_rate),
+            ("mean_vel_error", &mut self.mean_vel_error),
+            ("mean_speed", &mut self.mean_speed),
+            ("overspeed", &mut self.overspeed),
+            ("mean_abs_torque", &mut self.mean_abs_torque),
+            ("cost_of_transport", &mut self.cost_of_transport),
         ]
     }
 }
@@ -133,24 +141,12 @@ impl GaitScore {
     pub fn from_eval_metrics(values: &BTreeMap<String, f64>) -> Option<GaitScore> {
         let read = |prefix: &str| -> Option<GaitScore> {
             let get = |k: &str| values.get(&format!("{prefix}{k}")).copied();
+            get("score")?;
             let mut s = GaitScore {
-                score: get("score")?,
                 robots: get("robots").unwrap_or(0.0).max(0.0) as usize,
                 ..Default::default()
             };
-            for (k, slot) in [
-                ("track", &mut s.track),
-                ("effort", &mut s.effort),
-                ("tilt", &mut s.tilt),
-                ("progress", &mut s.progress),
-                ("progress_bounded", &mut s.progress_bounded),
-                ("fall_rate", &mut s.fall_rate),
-                ("mean_vel_error", &mut s.mean_vel_error),
-                ("mean_speed", &mut s.mean_speed),
-                ("overspeed", &mut s.overspeed),
-                ("mean_abs_torque", &mut s.mean_abs_torque),
-                ("cost_of_transport", &mut s.cost_of_transport),
-            ] {
+            for (k, slot) in s.components_mut() {
                 *slot = get(k).unwrap_or(0.0);
             }
             Some(s)
@@ -238,6 +234,23 @@ mod tests {
                 robots,
                 ..Default::default()
             },
+        }
+    }
+
+    #[test]
+    fn components_and_their_places_are_the_same_list() {
+        let mut s = GaitScore::default();
+        for (i, (_, v)) in s.components_mut().into_iter().enumerate() {
+            *v = i as f64 + 1.0;
+        }
+        let names_mut: Vec<&str> = GaitScore::default()
+            .components_mut()
+            .map(|(k, _)| k)
+            .to_vec();
+        let read: Vec<(&str, f64)> = s.components().to_vec();
+        assert_eq!(read.iter().map(|(k, _)| *k).collect::<Vec<_>>(), names_mut);
+        for (i, (k, v)) in read.into_iter().enumerate() {
+            assert_eq!(v, i as f64 + 1.0, "{k}");
         }
     }
 

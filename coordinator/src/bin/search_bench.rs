@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 use gaitsweep_coordinator::searchbench::{
     self, AshaSetup, EvolutionSetup, RecordedPoint, RecordedRun, Recording, Summary,
 };
+use gaitsweep_coordinator::store::queries;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -251,13 +252,10 @@ async fn export(
     terrain: Option<&str>,
 ) -> anyhow::Result<Recording> {
     let db = gaitsweep_coordinator::report::open_db(data_dir, database).await?;
-    let (name, spec_json): (String, String) =
-        sqlx::query_as("SELECT name, spec_json FROM sweeps WHERE id = $1")
-            .bind(sweep)
-            .fetch_optional(&db)
-            .await?
+    let queries::SweepSpecRow { name, spec, .. } =
+        queries::sweep_spec(&db, gaitsweep_core::SweepId(sweep))
+            .await
             .with_context(|| format!("no sweep {sweep} in this database"))?;
-    let spec: gaitsweep_core::ResolvedSpec = serde_json::from_str(&spec_json)?;
     if spec.search != gaitsweep_core::Search::Grid {
         bail!("sweep {sweep} is not a full grid: record a grid (no [search]) with eval.every");
     }
@@ -273,16 +271,14 @@ async fn export(
     .bind(&terrain)
     .fetch_all(&db)
     .await?;
-    let evals: Vec<(i64, i64, f64)> = sqlx::query_as(
-        "SELECT e.cell_id, e.epoch, e.score FROM evaluations e JOIN cells c ON c.id = e.cell_id \
-         WHERE c.sweep_id = $1 ORDER BY e.cell_id, e.epoch",
-    )
-    .bind(sweep)
-    .fetch_all(&db)
-    .await?;
+    let evals =
+        queries::evaluations(&db, gaitsweep_core::SweepId(sweep), queries::EvalKinds::All).await?;
     let mut by_cell: BTreeMap<i64, BTreeMap<u32, f64>> = BTreeMap::new();
-    for (cell, epoch, score) in evals {
-        by_cell.entry(cell).or_default().insert(epoch as u32, score);
+    for e in evals {
+        by_cell
+            .entry(e.cell_id)
+            .or_default()
+            .insert(e.epoch as u32, e.score);
     }
     let mut points: BTreeMap<(usize, usize), Vec<RecordedRun>> = BTreeMap::new();
     for (id, i, j, seed, score) in rows {

@@ -3,6 +3,7 @@
 
 use super::Live;
 use crate::service::now_ms;
+use crate::store::queries::{self, EvalKinds};
 use crate::store::Store;
 use axum::body::Body;
 use axum::extract::{Path, State};
@@ -11,6 +12,7 @@ use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Json, Response};
 use futures::stream::Stream;
 use gaitsweep_core::pb::{self, sweep_event::Kind};
+use gaitsweep_core::SweepId;
 use serde::Serialize;
 use serde_json::{json, Value};
 use sqlx::Row;
@@ -144,15 +146,8 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
     // The latest evaluation of each cell (a rung or `eval.every`): what a paused or stopped
     // cell of a successive-halving sweep is ranked by.
     let mut latest: BTreeMap<i64, (i64, f64, Option<f64>)> = BTreeMap::new();
-    for (cell, epoch, score, fall) in sqlx::query_as::<_, (i64, i64, f64, Option<f64>)>(
-        "SELECT e.cell_id, e.epoch, e.score, e.fall_rate FROM evaluations e JOIN cells c ON c.id = e.cell_id \
-         WHERE c.sweep_id = $1 ORDER BY e.cell_id, e.epoch",
-    )
-    .bind(id)
-    .fetch_all(&live.db)
-    .await?
-    {
-        latest.insert(cell, (epoch, score, fall));
+    for e in queries::evaluations(&live.db, SweepId(id), EvalKinds::All).await? {
+        latest.insert(e.cell_id, (e.epoch, e.score, e.fall_rate));
     }
     let cells: Vec<Value> = cells
         .into_iter()
@@ -166,15 +161,10 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
             c
         })
         .collect();
-    let spec_json: Option<String> =
-        sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = $1")
-            .bind(id)
-            .fetch_optional(&live.db)
-            .await?;
-    let epochs = spec_json
-        .map(|j| crate::store::rows::spec_of(&j))
-        .transpose()?
-        .map(|s| s.epochs);
+    let epochs = queries::sweep_spec(&live.db, SweepId(id))
+        .await?
+        .spec
+        .epochs;
     Ok(Json(json!({
         "id": data.sweep_id,
         "search": data.search,

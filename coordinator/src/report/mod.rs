@@ -19,10 +19,12 @@ mod plots;
 pub mod tensorboard;
 mod text;
 
+use crate::store::queries::{self, EvalKinds};
 use crate::store::rows::{CellRow, CELL_COLUMNS};
 use crate::store::DatabaseUrl;
 use anyhow::Context;
 use gaitsweep_core::records::CellRecord;
+use gaitsweep_core::SweepId;
 use gaitsweep_model::GaitScore;
 use sqlx::any::AnyPoolOptions;
 use sqlx::sqlite::SqliteConnectOptions;
@@ -305,17 +307,15 @@ pub async fn open_db(data_dir: &Path, database: Option<&str>) -> anyhow::Result<
 
 /// Loads everything the report of `sweep` shows.
 pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> {
-    let row = sqlx::query("SELECT id, name, robot, state, spec_json FROM sweeps WHERE id = $1")
-        .bind(sweep)
-        .fetch_optional(db)
-        .await?
+    let row = queries::sweep_spec(db, SweepId(sweep))
+        .await
         .with_context(|| format!("no sweep {sweep} in this database"))?;
-    let spec = crate::store::rows::spec_of(row.try_get("spec_json")?)?;
+    let spec = row.spec;
     let mut data = ReportData {
-        sweep_id: row.try_get("id")?,
-        name: row.try_get("name")?,
-        robot: row.try_get("robot")?,
-        state: row.try_get("state")?,
+        sweep_id: sweep,
+        name: row.name,
+        robot: spec.robot.clone(),
+        state: row.state,
         difficulty: spec.difficulty,
         terrains: spec.terrains.iter().map(|t| t.to_string()).collect(),
         w1_values: spec.w1_values.clone(),
@@ -362,16 +362,10 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> 
             s.levels = l;
         }
     }
-    let rungs: Vec<(i64, i64, f64)> = sqlx::query_as(
-        "SELECT e.cell_id, e.epoch, e.score FROM evaluations e JOIN cells c ON c.id = e.cell_id \
-         WHERE c.sweep_id = $1 AND e.kind = 'rung' ORDER BY e.epoch",
-    )
-    .bind(sweep)
-    .fetch_all(db)
-    .await?;
+    let rungs = queries::evaluations(db, SweepId(sweep), EvalKinds::Rungs).await?;
     let mut deepest: BTreeMap<i64, (u32, f64)> = BTreeMap::new();
-    for (cell, epoch, score) in rungs {
-        deepest.insert(cell, (epoch as u32, score));
+    for e in rungs {
+        deepest.insert(e.cell_id, (e.epoch as u32, e.score));
     }
     for c in &mut data.cells {
         c.rung = deepest.get(&c.id).copied();

@@ -7,23 +7,11 @@ use std::collections::BTreeSet;
 use gaitsweep_core::finalists::Point;
 use gaitsweep_core::{ResolvedSpec, SweepId};
 
+use super::queries::scored_cells;
 use super::search::insert_cells;
 use super::sql::Tx;
-use crate::across::ScoredCell;
 use crate::finalists;
 use crate::Result;
-
-/// Every scored cell of a sweep, in id order.
-async fn scored_cells(tx: &mut Tx, sweep: SweepId) -> Result<Vec<ScoredCell>> {
-    let rows: Vec<(i64, i64, i64, i64, f64)> = sqlx::query_as(
-        "SELECT c.id, c.terrain_index, c.w1_index, c.w2_index, s.score FROM cells c \
-         JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id",
-    )
-    .bind(sweep.0)
-    .fetch_all(&mut **tx)
-    .await?;
-    Ok(rows.into_iter().map(ScoredCell::from_row).collect())
-}
 
 /// The points that have cells past the first pass (replicate > 0): the finalists.
 async fn finalist_points(tx: &mut Tx, sweep: SweepId) -> Result<BTreeSet<Point>> {
@@ -49,7 +37,7 @@ pub(super) async fn queue(tx: &mut Tx, sweep: SweepId, spec: &ResolvedSpec) -> R
     if !finalist_points(tx, sweep).await?.is_empty() {
         return Ok(0);
     }
-    let picked = finalists::pick(&scored_cells(tx, sweep).await?, f.top);
+    let picked = finalists::pick(&scored_cells(&mut **tx, sweep).await?, f.top);
     let cells = spec.finalist_cells(&picked);
     insert_cells(tx, sweep, &cells, spec.epochs).await?;
     tracing::info!(%sweep, points = picked.len(), cells = cells.len(), seeds = f.seeds,
@@ -71,7 +59,8 @@ pub(super) async fn promote(
         return Ok(());
     }
     let points = finalist_points(tx, sweep).await?;
-    let (overall, per_terrain) = finalists::winners(&scored_cells(tx, sweep).await?, &points);
+    let (overall, per_terrain) =
+        finalists::winners(&scored_cells(&mut **tx, sweep).await?, &points);
     let mut rows: Vec<(String, finalists::Winner)> = per_terrain
         .into_iter()
         .filter_map(|(t, w)| Some((spec.terrains.get(t)?.to_string(), w)))

@@ -2,6 +2,7 @@
 //! transaction that stores the evaluation itself: the final score, a rung's or a periodic
 //! one.
 
+use super::score_sql::ScoreTable;
 use super::sql::Tx;
 use crate::Result;
 use gaitsweep_core::{CellId, LeaseId, SweepId};
@@ -19,35 +20,20 @@ pub(super) async fn write(
     levels: &[LevelScore],
 ) -> Result<()> {
     for l in levels {
-        let s = &l.score;
-        sqlx::query(
-            "INSERT INTO level_scores (cell_id, epoch, level, attempt_id, score, track, effort, tilt, \
-             progress, progress_bounded, fall_rate, mean_vel_error, mean_speed, overspeed, robots) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15) \
-             ON CONFLICT (cell_id, epoch, level) DO UPDATE SET attempt_id = excluded.attempt_id, \
-             score = excluded.score, track = excluded.track, effort = excluded.effort, \
-             tilt = excluded.tilt, progress = excluded.progress, \
-             progress_bounded = excluded.progress_bounded, fall_rate = excluded.fall_rate, \
-             mean_vel_error = excluded.mean_vel_error, mean_speed = excluded.mean_speed, \
-             overspeed = excluded.overspeed, robots = excluded.robots",
-        )
-        .bind(cell.0)
-        .bind(i64::from(epoch))
-        .bind(i64::from(l.level.min(9)))
-        .bind(lease.0)
-        .bind(s.score)
-        .bind(s.track)
-        .bind(s.effort)
-        .bind(s.tilt)
-        .bind(s.progress)
-        .bind(s.progress_bounded)
-        .bind(s.fall_rate)
-        .bind(s.mean_vel_error)
-        .bind(s.mean_speed)
-        .bind(s.overspeed)
-        .bind(s.robots as i64)
-        .execute(&mut **tx)
-        .await?;
+        let t = ScoreTable::Evaluation;
+        let sql = format!(
+            "INSERT INTO level_scores (cell_id, epoch, level, attempt_id, {}) VALUES ($1, $2, $3, $4, {}) \
+             ON CONFLICT (cell_id, epoch, level) DO UPDATE SET attempt_id = excluded.attempt_id, {}",
+            t.columns(),
+            t.placeholders(5),
+            t.upserts()
+        );
+        let q = sqlx::query(&sql)
+            .bind(cell.0)
+            .bind(i64::from(epoch))
+            .bind(i64::from(l.level.min(9)))
+            .bind(lease.0);
+        t.bind(q, &l.score).execute(&mut **tx).await?;
     }
     Ok(())
 }

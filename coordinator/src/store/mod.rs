@@ -6,7 +6,9 @@ mod finalists;
 pub mod levels;
 pub mod progress_writer;
 mod promotion;
+pub mod queries;
 pub mod rows;
+mod score_sql;
 mod search;
 pub mod sql;
 #[cfg(test)]

@@ -2,7 +2,7 @@
 //! across terrains when a sweep ends, and the sweep's end itself.
 
 use super::finalists;
-use super::rows::spec_of;
+use super::queries;
 use super::sql::Tx;
 use super::tx::{cell_tx, checkpoint_of, sweep_tx};
 use crate::across;
@@ -26,12 +26,7 @@ pub(super) async fn finish_if_done(
     if !sched::sweep_finished(open as u32) {
         return Ok(None);
     }
-    let (spec_json, state): (String, String) =
-        sqlx::query_as("SELECT spec_json, state FROM sweeps WHERE id = $1")
-            .bind(sweep.0)
-            .fetch_one(&mut **tx)
-            .await?;
-    let spec = spec_of(&spec_json)?;
+    let queries::SweepSpecRow { spec, state, .. } = queries::sweep_spec(&mut **tx, sweep).await?;
     if state == SweepState::Running.as_str() && finalists::queue(tx, sweep, &spec).await? > 0 {
         return Ok(None);
     }
@@ -62,15 +57,7 @@ async fn promote_across_terrains(
     if spec.terrains.len() < 2 || spec.search.generations().is_some() {
         return Ok(());
     }
-    let rows: Vec<(i64, i64, i64, i64, f64)> = sqlx::query_as(
-        "SELECT c.id, c.terrain_index, c.w1_index, c.w2_index, s.score FROM cells c \
-         JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id",
-    )
-    .bind(sweep.0)
-    .fetch_all(&mut **tx)
-    .await?;
-    let cells: Vec<across::ScoredCell> =
-        rows.into_iter().map(across::ScoredCell::from_row).collect();
+    let cells = queries::scored_cells(&mut **tx, sweep).await?;
     let Some(a) = across::best_across(&cells, spec.terrains.len()) else {
         tracing::info!(%sweep, "no grid point is scored on every terrain with a positive best: nothing promoted across terrains");
         return Ok(());
@@ -102,11 +89,12 @@ pub(super) async fn promote_point(
 ) -> Result<Vec<PromotionRecord>> {
     if cell.replicate > 0 {
         // A finalist's further seeds are promoted together when the sweep ends.
-        let spec_json: String = sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = $1")
-            .bind(cell.sweep_id.0)
-            .fetch_one(&mut **tx)
-            .await?;
-        if spec_of(&spec_json)?.finalists.is_some() {
+        if queries::sweep_spec(&mut **tx, cell.sweep_id)
+            .await?
+            .spec
+            .finalists
+            .is_some()
+        {
             return Ok(vec![]);
         }
     }

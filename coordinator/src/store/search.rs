@@ -4,7 +4,8 @@
 //! attempt.
 
 use super::promotion::finish_if_done;
-use super::rows::spec_of;
+use super::queries::{self, EvalKinds};
+use super::score_sql::ScoreTable;
 use super::sql::Tx;
 use super::tx::{cell_tx, end_winning_attempt, refuse_closed, require_uploaded};
 use super::ResultOutcome;
@@ -38,34 +39,22 @@ pub(super) async fn rung_result(
         )));
     }
     require_uploaded(tx, final_sha256, epochs, "rung").await?;
-    sqlx::query(
-        "INSERT INTO evaluations (cell_id, epoch, kind, attempt_id, score, track, effort, tilt, progress, \
-         fall_rate, mean_vel_error, robots, reported_unix_ms, progress_bounded, mean_speed, overspeed) \
-         VALUES ($1, $2, 'rung', $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15) \
+    let t = ScoreTable::Evaluation;
+    let sql = format!(
+        "INSERT INTO evaluations (cell_id, epoch, kind, attempt_id, reported_unix_ms, {}) \
+         VALUES ($1, $2, 'rung', $3, $4, {}) \
          ON CONFLICT (cell_id, epoch) DO UPDATE SET kind = 'rung', attempt_id = excluded.attempt_id, \
-         score = excluded.score, track = excluded.track, effort = excluded.effort, tilt = excluded.tilt, \
-         progress = excluded.progress, fall_rate = excluded.fall_rate, mean_vel_error = excluded.mean_vel_error, \
-         robots = excluded.robots, reported_unix_ms = excluded.reported_unix_ms, \
-         progress_bounded = excluded.progress_bounded, mean_speed = excluded.mean_speed, \
-         overspeed = excluded.overspeed",
-    )
-    .bind(cell_id.0)
-    .bind(i64::from(target))
-    .bind(lease.0)
-    .bind(score.score)
-    .bind(score.track)
-    .bind(score.effort)
-    .bind(score.tilt)
-    .bind(score.progress)
-    .bind(score.fall_rate)
-    .bind(score.mean_vel_error)
-    .bind(score.robots as i64)
-    .bind(now_ms)
-    .bind(score.progress_bounded)
-    .bind(score.mean_speed)
-    .bind(score.overspeed)
-    .execute(&mut **tx)
-    .await?;
+         reported_unix_ms = excluded.reported_unix_ms, {}",
+        t.columns(),
+        t.placeholders(5),
+        t.upserts()
+    );
+    let q = sqlx::query(&sql)
+        .bind(cell_id.0)
+        .bind(i64::from(target))
+        .bind(lease.0)
+        .bind(now_ms);
+    t.bind(q, score).execute(&mut **tx).await?;
     super::levels::write(tx, cell_id, lease, target, &score.levels).await?;
     end_winning_attempt(
         tx,
@@ -103,11 +92,7 @@ pub(super) async fn apply_asha(
     sweep: SweepId,
     now_ms: i64,
 ) -> Result<Vec<RungDecisionRecord>> {
-    let spec_json: String = sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = $1")
-        .bind(sweep.0)
-        .fetch_one(&mut **tx)
-        .await?;
-    let spec = spec_of(&spec_json)?;
+    let spec = queries::sweep_spec(&mut **tx, sweep).await?.spec;
     let Some(reduction) = spec.halving_reduction() else {
         return Ok(vec![]);
     };
@@ -123,16 +108,10 @@ pub(super) async fn apply_asha(
             .bind(sweep.0)
             .fetch_all(&mut **tx)
             .await?;
-    let evals: Vec<(i64, i64, f64)> = sqlx::query_as(
-        "SELECT e.cell_id, e.epoch, e.score FROM evaluations e JOIN cells c ON c.id = e.cell_id \
-         WHERE c.sweep_id = $1 AND e.kind = 'rung'",
-    )
-    .bind(sweep.0)
-    .fetch_all(&mut **tx)
-    .await?;
+    let evals = queries::evaluations(&mut **tx, sweep, EvalKinds::Rungs).await?;
     let mut at: BTreeMap<(i64, i64), f64> = BTreeMap::new();
-    for (c, e, v) in evals {
-        at.insert((c, e), v);
+    for e in evals {
+        at.insert((e.cell_id, e.epoch), e.score);
     }
     let mut groups: BTreeMap<i64, Vec<asha::AshaCell>> = BTreeMap::new();
     for (id, state, generation) in &states {
@@ -222,35 +201,26 @@ pub(super) async fn record_periodic_eval(
     now_ms: i64,
 ) -> Result<()> {
     let v = |k: &str| values.get(&format!("eval/{k}")).copied();
-    let written = sqlx::query(
-        "INSERT INTO evaluations (cell_id, epoch, kind, attempt_id, score, track, effort, tilt, progress, \
-         fall_rate, mean_vel_error, robots, reported_unix_ms, progress_bounded, mean_speed, overspeed) \
-         VALUES ($1, $2, 'periodic', $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15) \
+    let t = ScoreTable::Evaluation;
+    let sql = format!(
+        "INSERT INTO evaluations (cell_id, epoch, kind, attempt_id, reported_unix_ms, {}) \
+         VALUES ($1, $2, 'periodic', $3, $4, {}) \
          ON CONFLICT (cell_id, epoch) DO UPDATE SET attempt_id = excluded.attempt_id, \
-         score = excluded.score, track = excluded.track, effort = excluded.effort, tilt = excluded.tilt, \
-         progress = excluded.progress, fall_rate = excluded.fall_rate, mean_vel_error = excluded.mean_vel_error, \
-         robots = excluded.robots, reported_unix_ms = excluded.reported_unix_ms, \
-         progress_bounded = excluded.progress_bounded, mean_speed = excluded.mean_speed, \
-         overspeed = excluded.overspeed \
+         reported_unix_ms = excluded.reported_unix_ms, {} \
          WHERE evaluations.kind = 'periodic' AND evaluations.attempt_id <= excluded.attempt_id",
-    )
-    .bind(cell.0)
-    .bind(i64::from(epoch))
-    .bind(lease.0)
-    .bind(score)
-    .bind(v("track"))
-    .bind(v("effort"))
-    .bind(v("tilt"))
-    .bind(v("progress"))
-    .bind(v("fall_rate"))
-    .bind(v("mean_vel_error"))
-    .bind(v("robots").map(|r| r as i64))
-    .bind(now_ms)
-    .bind(v("progress_bounded"))
-    .bind(v("mean_speed"))
-    .bind(v("overspeed"))
-    .execute(&mut **tx)
-    .await?;
+        t.columns(),
+        t.placeholders(5),
+        t.upserts()
+    );
+    let q = sqlx::query(&sql)
+        .bind(cell.0)
+        .bind(i64::from(epoch))
+        .bind(lease.0)
+        .bind(now_ms);
+    let written = t
+        .bind_by_name(q, |k| if k == "score" { Some(score) } else { v(k) })
+        .execute(&mut **tx)
+        .await?;
     // The levels go with the evaluation's row: not over a rung's, nor an earlier attempt's
     // over a later one's.
     if written.rows_affected() > 0 {
@@ -324,12 +294,7 @@ pub(super) fn first_generation(spec: &ResolvedSpec) -> Result<Vec<[f64; 2]>> {
 /// its scored replicates; one with none (failed for good) ranks below its generation.
 /// Nothing for other searches, an open generation or a sweep that is not running.
 pub(super) async fn apply_evolution(tx: &mut Tx, sweep: SweepId) -> Result<Option<(u32, usize)>> {
-    let (spec_json, state): (String, String) =
-        sqlx::query_as("SELECT spec_json, state FROM sweeps WHERE id = $1")
-            .bind(sweep.0)
-            .fetch_one(&mut **tx)
-            .await?;
-    let spec = spec_of(&spec_json)?;
+    let queries::SweepSpecRow { spec, state, .. } = queries::sweep_spec(&mut **tx, sweep).await?;
     let Some(params) = evolution_params(&spec) else {
         return Ok(None);
     };
@@ -362,15 +327,16 @@ pub(super) async fn apply_evolution(tx: &mut Tx, sweep: SweepId) -> Result<Optio
     // by how far it got, then by its score there.
     let halted = if spec.halving_reduction().is_some() {
         let rungs = spec.rungs();
-        let evals: Vec<(i64, i64, i64, f64)> = sqlx::query_as(
-            "SELECT c.w1_index, c.w2_index, e.epoch, e.score FROM evaluations e JOIN cells c ON c.id = e.cell_id \
-             WHERE c.sweep_id = $1 AND e.kind = 'rung' ORDER BY e.epoch",
-        )
-        .bind(sweep.0)
-        .fetch_all(&mut **tx)
-        .await?;
+        let evals = queries::evaluations(&mut **tx, sweep, EvalKinds::Rungs).await?;
         let mut deepest: BTreeMap<(i64, i64), (usize, f64)> = BTreeMap::new();
-        for (g, k, epoch, score) in evals {
+        for queries::EvalPoint {
+            w1_index: g,
+            w2_index: k,
+            epoch,
+            score,
+            ..
+        } in evals
+        {
             if let Some(depth) = rungs.iter().position(|r| i64::from(*r) == epoch) {
                 deepest.insert((g, k), (depth, score));
             }

@@ -9,7 +9,9 @@
 use super::backend::{writer_pool, Backend, DatabaseUrl};
 use super::progress_writer::{ProgressWriter, WriteSnapshot};
 use super::promotion::{finish_if_done, promote_point};
-use super::rows::{spec_of, CELL_COLUMNS, SWEEP_COLUMNS};
+use super::queries;
+use super::rows::{CELL_COLUMNS, SWEEP_COLUMNS};
+use super::score_sql::ScoreTable;
 use super::search::{self, apply_asha, rung_result};
 use super::tx::{
     cell_from_row, cell_tx, checkpoint_of, end_winning_attempt, lease_cell, refuse_closed,
@@ -361,15 +363,12 @@ impl Store for SqlStore {
             .execute(&mut *tx)
             .await?;
         let cell = cell_tx(&mut tx, cell_id).await?;
-        let spec_json: String = sqlx::query_scalar("SELECT spec_json FROM sweeps WHERE id = $1")
-            .bind(cell.sweep_id.0)
-            .fetch_one(&mut *tx)
-            .await?;
+        let spec = queries::sweep_spec(&mut *tx, cell.sweep_id).await?.spec;
         tx.commit().await?;
         Ok(Some(LeaseGrant {
             lease: LeaseId(lease),
             cell,
-            spec: spec_of(&spec_json)?,
+            spec,
             resume,
         }))
     }
@@ -516,32 +515,20 @@ impl Store for SqlStore {
         refuse_closed(cell_id, state)?;
         validate::result_epochs(target, epochs)?;
         require_uploaded(&mut tx, final_sha256, epochs, "final").await?;
-        sqlx::query(
-            "INSERT INTO scores (cell_id, attempt_id, score, track, effort, tilt, progress, fall_rate, mean_vel_error, \
-             mean_abs_torque, cost_of_transport, robots, epochs, final_checkpoint_sha256, reported_unix_ms, \
-             progress_bounded, mean_speed, overspeed) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16, $17, $18)",
-        )
-        .bind(cell_id.0)
-        .bind(lease.0)
-        .bind(score.score)
-        .bind(score.track)
-        .bind(score.effort)
-        .bind(score.tilt)
-        .bind(score.progress)
-        .bind(score.fall_rate)
-        .bind(score.mean_vel_error)
-        .bind(score.mean_abs_torque)
-        .bind(score.cost_of_transport)
-        .bind(score.robots as i64)
-        .bind(epochs as i64)
-        .bind(final_sha256)
-        .bind(now_ms)
-        .bind(score.progress_bounded)
-        .bind(score.mean_speed)
-        .bind(score.overspeed)
-        .execute(&mut *tx)
-        .await?;
+        let t = ScoreTable::Final;
+        let sql = format!(
+            "INSERT INTO scores (cell_id, attempt_id, epochs, final_checkpoint_sha256, reported_unix_ms, {}) \
+             VALUES ($1, $2, $3, $4, $5, {})",
+            t.columns(),
+            t.placeholders(6)
+        );
+        let q = sqlx::query(&sql)
+            .bind(cell_id.0)
+            .bind(lease.0)
+            .bind(epochs as i64)
+            .bind(final_sha256)
+            .bind(now_ms);
+        t.bind(q, score).execute(&mut *tx).await?;
         super::levels::write(&mut tx, cell_id, lease, epochs, &score.levels).await?;
         end_winning_attempt(
             &mut tx,

@@ -1,0 +1,111 @@
+//! The reads that several parts of the coordinator share (the store's transactions, the
+//! report, the live API, the search benchmark): each query is written here once, typed.
+
+use super::rows::spec_of;
+use crate::across::ScoredCell;
+use crate::{Error, Result};
+use gaitsweep_core::{ResolvedSpec, SweepId};
+use sqlx::{Any, Executor};
+
+/// A sweep's name, state and spec (its defaults filled in).
+#[derive(Debug, Clone)]
+pub struct SweepSpecRow {
+    /// Name.
+    pub name: String,
+    /// State (`running`, `done`, ...).
+    pub state: String,
+    /// The stored spec.
+    pub spec: ResolvedSpec,
+}
+
+/// The name, state and spec of `sweep`; an unknown sweep is [`Error::UnknownSweep`].
+pub async fn sweep_spec<'e>(
+    db: impl Executor<'e, Database = Any>,
+    sweep: SweepId,
+) -> Result<SweepSpecRow> {
+    let row: Option<(String, String, String)> =
+        sqlx::query_as("SELECT name, state, spec_json FROM sweeps WHERE id = $1")
+            .bind(sweep.0)
+            .fetch_optional(db)
+            .await?;
+    let (name, state, spec_json) = row.ok_or(Error::UnknownSweep(sweep))?;
+    Ok(SweepSpecRow {
+        name,
+        state,
+        spec: spec_of(&spec_json)?,
+    })
+}
+
+/// One evaluation of a cell (a rung's, or a periodic one).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EvalPoint {
+    /// The cell.
+    pub cell_id: i64,
+    /// Its grid row (an evolutionary sweep's generation).
+    pub w1_index: i64,
+    /// Its grid column (an evolutionary sweep's candidate).
+    pub w2_index: i64,
+    /// Epoch of the evaluation.
+    pub epoch: i64,
+    /// Score.
+    pub score: f64,
+    /// Fall rate (unknown for evaluations stored by old workers).
+    pub fall_rate: Option<f64>,
+}
+
+/// Which evaluations [`evaluations`] reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EvalKinds {
+    /// Rungs of successive halving only.
+    Rungs,
+    /// Every evaluation: rungs and periodic ones.
+    All,
+}
+
+/// The evaluations of `sweep`'s cells in epoch order (then by cell), so that a map filled
+/// from them in order keeps each cell's (or point's) latest.
+pub async fn evaluations<'e>(
+    db: impl Executor<'e, Database = Any>,
+    sweep: SweepId,
+    kinds: EvalKinds,
+) -> Result<Vec<EvalPoint>> {
+    let filter = match kinds {
+        EvalKinds::Rungs => " AND e.kind = 'rung'",
+        EvalKinds::All => "",
+    };
+    let sql = format!(
+        "SELECT e.cell_id, c.w1_index, c.w2_index, e.epoch, e.score, e.fall_rate FROM evaluations e \
+         JOIN cells c ON c.id = e.cell_id WHERE c.sweep_id = $1{filter} ORDER BY e.epoch, e.cell_id"
+    );
+    let rows: Vec<(i64, i64, i64, i64, f64, Option<f64>)> =
+        sqlx::query_as(&sql).bind(sweep.0).fetch_all(db).await?;
+    Ok(rows
+        .into_iter()
+        .map(
+            |(cell_id, w1_index, w2_index, epoch, score, fall_rate)| EvalPoint {
+                cell_id,
+                w1_index,
+                w2_index,
+                epoch,
+                score,
+                fall_rate,
+            },
+        )
+        .collect())
+}
+
+/// Every scored cell of `sweep` with its final score, in id order: what promotion across
+/// terrains and the finalists rank.
+pub(super) async fn scored_cells<'e>(
+    db: impl Executor<'e, Database = Any>,
+    sweep: SweepId,
+) -> Result<Vec<ScoredCell>> {
+    let rows: Vec<(i64, i64, i64, i64, f64)> = sqlx::query_as(
+        "SELECT c.id, c.terrain_index, c.w1_index, c.w2_index, s.score FROM cells c \
+         JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id",
+    )
+    .bind(sweep.0)
+    .fetch_all(db)
+    .await?;
+    Ok(rows.into_iter().map(ScoredCell::from_row).collect())
+}
