@@ -230,6 +230,20 @@ async fn the_live_page_shows_a_finished_sweep_and_refuses_a_missing_token() {
     )
     .0
     .contains("400"));
+    // The JSON the page reads is typed: a value of the wrong type is an error, not a null.
+    let (status, workers) = http_get(&http, "/api/workers", Some(TOKEN));
+    let workers: serde_json::Value = serde_json::from_slice(&workers).unwrap();
+    assert!(status.contains("200"), "{status}");
+    let worker = &workers["workers"][0];
+    assert!(worker["cores"].as_i64().unwrap() >= 1, "{workers}");
+    assert_eq!(worker["slots"].as_i64(), Some(1), "{workers}");
+    let (_, cell) = http_get(&http, "/api/cells/1", Some(TOKEN));
+    let cell: serde_json::Value = serde_json::from_slice(&cell).unwrap();
+    let attempt = &cell["attempts"][0];
+    assert!(
+        attempt["worker"].is_string() && attempt["started_unix_ms"].is_i64(),
+        "{cell}"
+    );
 
     let shot = tmp.path().join("live.png");
     browse(

@@ -218,7 +218,17 @@ pub(crate) async fn cell(State(live): State<Live>, Path(id): Path<i64>) -> ApiRe
                 .push((r.try_get("epoch")?, v));
         }
     }
-    let attempts: Vec<Value> = sqlx::query(
+    type AttemptRow = (
+        i64,
+        String,
+        Option<String>,
+        String,
+        i64,
+        i64,
+        Option<i64>,
+        Option<String>,
+    );
+    let attempts: Vec<Value> = sqlx::query_as::<_, AttemptRow>(
         "SELECT a.id, a.worker_id, w.hostname, a.state, a.resumed_from_epoch, a.started_unix_ms, \
          a.ended_unix_ms, a.error FROM attempts a LEFT JOIN workers w ON w.id = a.worker_id \
          WHERE a.cell_id = $1 ORDER BY a.id",
@@ -226,37 +236,41 @@ pub(crate) async fn cell(State(live): State<Live>, Path(id): Path<i64>) -> ApiRe
     .bind(id)
     .fetch_all(&live.db)
     .await?
-    .iter()
-    .map(|r| {
-        json!({
-            "id": r.try_get::<i64, _>("id").ok(),
-            "worker": r.try_get::<String, _>("worker_id").ok(),
-            "host": r.try_get::<Option<String>, _>("hostname").ok().flatten(),
-            "state": r.try_get::<String, _>("state").ok(),
-            "resumed_from_epoch": r.try_get::<i64, _>("resumed_from_epoch").ok(),
-            "started_unix_ms": r.try_get::<i64, _>("started_unix_ms").ok(),
-            "ended_unix_ms": r.try_get::<Option<i64>, _>("ended_unix_ms").ok().flatten(),
-            "error": r.try_get::<Option<String>, _>("error").ok().flatten(),
-        })
-    })
-    .collect();
-    let evaluations: Vec<Value> = sqlx::query(
-        "SELECT epoch, kind, score, fall_rate, mean_vel_error FROM evaluations WHERE cell_id = $1 ORDER BY epoch",
+    .into_iter()
+    .map(
+        |(id, worker, host, state, resumed, started, ended, error)| {
+            json!({
+                "id": id,
+                "worker": worker,
+                "host": host,
+                "state": state,
+                "resumed_from_epoch": resumed,
+                "started_unix_ms": started,
+                "ended_unix_ms": ended,
+                "error": error,
+            })
+        },
     )
-    .bind(id)
-    .fetch_all(&live.db)
-    .await?
-    .iter()
-    .map(|r| {
-        json!({
-            "epoch": r.try_get::<i64, _>("epoch").ok(),
-            "kind": r.try_get::<String, _>("kind").ok(),
-            "score": r.try_get::<f64, _>("score").ok(),
-            "fall_rate": r.try_get::<Option<f64>, _>("fall_rate").ok().flatten(),
-            "mean_vel_error": r.try_get::<Option<f64>, _>("mean_vel_error").ok().flatten(),
-        })
-    })
     .collect();
+    let evaluations: Vec<Value> =
+        sqlx::query_as::<_, (i64, String, f64, Option<f64>, Option<f64>)>(
+            "SELECT epoch, kind, score, fall_rate, mean_vel_error FROM evaluations WHERE cell_id = $1 \
+             ORDER BY epoch",
+        )
+        .bind(id)
+        .fetch_all(&live.db)
+        .await?
+        .into_iter()
+        .map(|(epoch, kind, score, fall_rate, mean_vel_error)| {
+            json!({
+                "epoch": epoch,
+                "kind": kind,
+                "score": score,
+                "fall_rate": fall_rate,
+                "mean_vel_error": mean_vel_error,
+            })
+        })
+        .collect();
     Ok(Json(json!({
         "id": head.try_get::<i64, _>("id")?,
         "terrain": head.try_get::<String, _>("terrain")?,
@@ -282,23 +296,22 @@ pub(crate) async fn workers(State(live): State<Live>) -> ApiResult<Json<Value>> 
     {
         running.entry(w).or_default().push(c);
     }
-    let rows = sqlx::query(
+    let rows = sqlx::query_as::<_, (String, String, i64, String, i64, i64)>(
         "SELECT id, hostname, cores, device, slots, last_seen_unix_ms FROM workers ORDER BY last_seen_unix_ms DESC",
     )
     .fetch_all(&live.db)
     .await?;
     let out: Vec<Value> = rows
-        .iter()
-        .map(|r| {
-            let id: String = r.try_get("id").unwrap_or_default();
+        .into_iter()
+        .map(|(id, host, cores, device, slots, last_seen)| {
             json!({
-                "id": id,
-                "host": r.try_get::<String, _>("hostname").ok(),
-                "cores": r.try_get::<i64, _>("cores").ok(),
-                "device": r.try_get::<String, _>("device").ok(),
-                "slots": r.try_get::<i64, _>("slots").ok(),
-                "last_seen_unix_ms": r.try_get::<i64, _>("last_seen_unix_ms").ok(),
                 "cells": running.get(&id).cloned().unwrap_or_default(),
+                "id": id,
+                "host": host,
+                "cores": cores,
+                "device": device,
+                "slots": slots,
+                "last_seen_unix_ms": last_seen,
             })
         })
         .collect();
