@@ -65,6 +65,14 @@ pub enum Error {
     /// The server could not be set up or failed while serving.
     #[error("server: {0}")]
     Server(String),
+    /// A database could not be opened for reading.
+    #[error("{what}: {message}")]
+    OpenDb {
+        /// What was opened, and where.
+        what: String,
+        /// Why it failed, and what to check.
+        message: String,
+    },
     /// A request is malformed.
     #[error("bad request: {0}")]
     BadRequest(String),
@@ -132,6 +140,7 @@ impl From<Error> for tonic::Status {
             Error::Db(_)
             | Error::Migrate(_)
             | Error::Server(_)
+            | Error::OpenDb { .. }
             | Error::Io { .. }
             | Error::Write { .. }
             | Error::Json(_) => {

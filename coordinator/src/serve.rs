@@ -55,7 +55,7 @@ pub async fn serve(
     let database = cfg
         .database
         .clone()
-        .unwrap_or_else(|| DatabaseUrl::Sqlite(cfg.data_dir.join(crate::report::DB_FILE)));
+        .unwrap_or_else(|| DatabaseUrl::Sqlite(cfg.data_dir.join(crate::store::DB_FILE)));
     let store = SqlStore::connect(&database)
         .await
         .map_err(|e| Error::Server(format!("open the database {}: {e}", database.redacted())))?;

@@ -142,7 +142,9 @@ impl Server {
     }
 
     async fn open(&self) -> anyhow::Result<sqlx::AnyPool> {
-        gaitsweep_coordinator::report::open_db(&self.dir.0, self.postgres.as_deref()).await
+        gaitsweep_coordinator::store::reader::open(&self.dir.0, self.postgres.as_deref())
+            .await
+            .map_err(Into::into)
     }
 }
 

@@ -251,7 +251,7 @@ async fn export(
     sweep: i64,
     terrain: Option<&str>,
 ) -> anyhow::Result<Recording> {
-    let db = gaitsweep_coordinator::report::open_db(data_dir, database).await?;
+    let db = gaitsweep_coordinator::store::reader::open(data_dir, database).await?;
     let queries::SweepSpecRow { name, spec, .. } =
         queries::sweep_spec(&db, gaitsweep_core::SweepId(sweep))
             .await

@@ -21,23 +21,16 @@ mod text;
 
 use crate::store::queries::{self, EvalKinds};
 use crate::store::rows::{CellRow, CELL_COLUMNS};
-use crate::store::DatabaseUrl;
 use anyhow::Context;
 use gaitsweep_core::records::CellRecord;
 use gaitsweep_core::SweepId;
 use gaitsweep_model::GaitScore;
-use sqlx::any::AnyPoolOptions;
-use sqlx::sqlite::SqliteConnectOptions;
-use sqlx::ConnectOptions;
 use sqlx::{FromRow, Row};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 pub use plots::{colormap, register_fonts};
 pub use text::{budget_text, eval_text};
-
-/// Name of the database file in a coordinator's data dir.
-pub const DB_FILE: &str = "gaitsweep.sqlite";
 
 /// Metrics drawn as learning curves, in the order they are looked for.
 pub const CURVE_METRICS: [&str; 3] = ["mean_step_reward", "mean_return", "eval/score"];
@@ -262,49 +255,6 @@ impl ReportData {
     }
 }
 
-/// Opens the coordinator's database for reading: `database` (a PostgreSQL URL or a SQLite
-/// file, as `coordinator serve --database`) or else the data dir's SQLite file (read-only;
-/// WAL: works while the coordinator runs).
-pub async fn open_db(data_dir: &Path, database: Option<&str>) -> anyhow::Result<sqlx::AnyPool> {
-    sqlx::any::install_default_drivers();
-    let url = match database.map(DatabaseUrl::parse).transpose()? {
-        Some(DatabaseUrl::Postgres(u)) => {
-            return AnyPoolOptions::new()
-                .max_connections(1)
-                .connect(&u)
-                .await
-                .with_context(|| {
-                    format!("connect to {}", DatabaseUrl::Postgres(u.clone()).redacted())
-                });
-        }
-        Some(DatabaseUrl::Sqlite(path)) => path,
-        None => data_dir.join(DB_FILE),
-    };
-    let url = crate::store::backend::absolute(&url)?;
-    if !url.is_file() {
-        anyhow::bail!(
-            "no database at {}: is --data-dir the coordinator's data dir (or --database its database)?",
-            url.display()
-        );
-    }
-    let opts = SqliteConnectOptions::new()
-        .filename(&url)
-        .read_only(true)
-        .to_url_lossy();
-    AnyPoolOptions::new()
-        .max_connections(1)
-        .after_connect(|conn, _| {
-            Box::pin(async move {
-                sqlx::Executor::execute(conn, "PRAGMA busy_timeout = 10000;")
-                    .await
-                    .map(|_| ())
-            })
-        })
-        .connect(opts.as_str())
-        .await
-        .with_context(|| format!("open {} read-only", url.display()))
-}
-
 /// Loads everything the report of `sweep` shows.
 pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> {
     let row = queries::sweep_spec(db, SweepId(sweep))
@@ -519,7 +469,7 @@ pub struct ReportArgs {
 
 /// Runs `coordinator report`.
 pub async fn run(a: ReportArgs) -> anyhow::Result<()> {
-    let db = open_db(&a.data_dir, a.database.as_deref()).await?;
+    let db = crate::store::reader::open(&a.data_dir, a.database.as_deref()).await?;
     let data = load(&db, a.sweep).await?;
     db.close().await;
     std::fs::create_dir_all(&a.out).with_context(|| format!("create {}", a.out.display()))?;

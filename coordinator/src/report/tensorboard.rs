@@ -89,7 +89,7 @@ pub async fn export(db: &sqlx::AnyPool, sweep: i64, out: &Path) -> anyhow::Resul
 /// Runs `coordinator tensorboard`.
 pub async fn run(a: TensorboardArgs) -> anyhow::Result<()> {
     let dir = a.data_dir.clone().unwrap_or_default();
-    let db = super::open_db(&dir, a.database.as_deref()).await?;
+    let db = crate::store::reader::open(&dir, a.database.as_deref()).await?;
     let (runs, scalars) = export(&db, a.sweep, &a.out).await?;
     db.close().await;
     println!(

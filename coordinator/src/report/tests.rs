@@ -3,7 +3,7 @@
 //! back and reported.
 
 use super::*;
-use crate::store::{SqlStore, Store, WorkerInfo};
+use crate::store::{SqlStore, Store, WorkerInfo, DB_FILE};
 use gaitsweep_core::records::CheckpointRecord;
 use gaitsweep_core::{ResolvedSpec, WorkerId};
 use gaitsweep_model::TerrainKind;
@@ -347,7 +347,7 @@ async fn a_sweep_stored_by_the_coordinator_is_reported() {
             .await
             .unwrap();
     }
-    let db = open_db(dir.path(), None).await.unwrap();
+    let db = crate::store::reader::open(dir.path(), None).await.unwrap();
     let d = load(&db, sweep.id.0).await.unwrap();
     assert_eq!(d.terrains, vec!["flat", "stairs"]);
     assert_eq!(d.w1_values, vec![2.0, 12.0]);

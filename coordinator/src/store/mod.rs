@@ -7,6 +7,7 @@ pub mod levels;
 pub mod progress_writer;
 mod promotion;
 pub mod queries;
+pub mod reader;
 pub mod rows;
 mod score_sql;
 mod search;
@@ -26,6 +27,7 @@ use std::future::Future;
 
 pub use backend::{Backend, DatabaseUrl};
 pub use progress_writer::WriteSnapshot;
+pub use reader::DB_FILE;
 pub use sql::SqlStore;
 
 /// What a worker says about itself when it registers.

@@ -217,7 +217,7 @@ impl Coord {
 
     /// The coordinator's database, for reading (the same pool the report uses).
     pub async fn db(&self) -> sqlx::AnyPool {
-        gaitsweep_coordinator::report::open_db(&self.data, self.database.as_deref())
+        gaitsweep_coordinator::store::reader::open(&self.data, self.database.as_deref())
             .await
             .expect("open db")
     }
