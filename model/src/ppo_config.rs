@@ -112,66 +112,68 @@ impl Default for PpoConfig {
 }
 
 impl PpoConfig {
-    /// Overrides scalar hyperparameters by name (`clip_param = 0.1`, ...). Booleans take
-    /// 0/1; integers must be whole. An unknown name is an error listing the known ones.
+    /// Overrides scalar hyperparameters by name (`clip_param = 0.1`, ...). The names are
+    /// the fields of this struct (read from its serialised form, so a new field is
+    /// overridable without a list to keep): floats take the value, booleans 0/1, integers a
+    /// whole number. An unknown name is an error listing the known ones.
     pub fn apply_overrides(&mut self, overrides: &BTreeMap<String, f64>) -> Result<()> {
+        if overrides.is_empty() {
+            return Ok(());
+        }
+        let mut table = toml::Table::try_from(&*self)
+            .map_err(|e| Error::InvalidArgument(format!("ppo settings: {e}")))?;
         for (key, &v) in overrides {
             let bad =
                 |what: &str| Error::InvalidArgument(format!("ppo override {key} = {v}: {what}"));
             if !v.is_finite() {
                 return Err(bad("value must be finite"));
             }
-            let whole_from = |min: f64, what: &str| -> Result<usize> {
-                if v >= min && v.fract() == 0.0 {
-                    Ok(v as usize)
-                } else {
-                    Err(bad(what))
-                }
-            };
-            let whole = || whole_from(1.0, "expected a positive whole number");
             match key.as_str() {
-                "init_noise_std" => self.init_noise_std = v,
-                "clip_param" => self.clip_param = v,
-                "gamma" => self.gamma = v,
-                "lam" => self.lam = v,
-                "value_loss_coef" => self.value_loss_coef = v,
-                "entropy_coef" => self.entropy_coef = v,
-                "learning_rate" => self.learning_rate = v,
-                "desired_kl" => self.desired_kl = v,
-                "adaptive_lr" => self.adaptive_lr = v != 0.0,
-                "max_grad_norm" => self.max_grad_norm = v,
-                "num_learning_epochs" => self.num_learning_epochs = whole()?,
-                "num_mini_batches" => self.num_mini_batches = whole()?,
-                "steps_per_env" => self.steps_per_env = whole()?,
-                "clip_value_loss" => self.clip_value_loss = v != 0.0,
-                "final_noise_std" => self.final_noise_std = v,
-                "noise_decay_epochs" => self.noise_decay_epochs = whole()?,
-                "noise_decay_start" => {
-                    self.noise_decay_start = whole_from(0.0, "expected a whole number >= 0")?
-                }
                 "noise_decay_start_fraction" | "noise_decay_end_fraction"
                     if !(0.0..=1.0).contains(&v) =>
                 {
                     return Err(bad("expected a fraction of the epoch budget in [0, 1]"))
                 }
-                "noise_decay_start_fraction" => self.noise_decay_start_fraction = v,
-                "noise_decay_end_fraction" => self.noise_decay_end_fraction = v,
-                "mirror_loss_coef" if v >= 0.0 => self.mirror_loss_coef = v,
-                "mirror_loss_coef" => return Err(bad("expected a value >= 0")),
-                "mirror_augmentation" => self.mirror_augmentation = v != 0.0,
-                _ => {
-                    return Err(bad(
-                        "unknown hyperparameter; known: init_noise_std, clip_param, gamma, lam, \
-                         value_loss_coef, entropy_coef, learning_rate, desired_kl, adaptive_lr, \
-                         max_grad_norm, num_learning_epochs, num_mini_batches, steps_per_env, \
-                         clip_value_loss, final_noise_std, noise_decay_epochs, noise_decay_start, \
-                         noise_decay_start_fraction, noise_decay_end_fraction, \
-                         mirror_loss_coef, mirror_augmentation",
-                    ))
-                }
+                "mirror_loss_coef" if v < 0.0 => return Err(bad("expected a value >= 0")),
+                _ => {}
             }
+            // Epoch counts of the schedule may be 0 (off); every other count is positive.
+            let min = if key == "noise_decay_start" { 0.0 } else { 1.0 };
+            let known = Self::override_names(&table).join(", ");
+            let slot = table
+                .get_mut(key.as_str())
+                .ok_or_else(|| bad(&format!("unknown hyperparameter; known: {known}")))?;
+            *slot = match slot {
+                toml::Value::Float(_) => toml::Value::Float(v),
+                toml::Value::Boolean(_) => toml::Value::Boolean(v != 0.0),
+                toml::Value::Integer(_) if v >= min && v.fract() == 0.0 => {
+                    toml::Value::Integer(v as i64)
+                }
+                toml::Value::Integer(_) if min == 0.0 => {
+                    return Err(bad("expected a whole number >= 0"))
+                }
+                toml::Value::Integer(_) => return Err(bad("expected a positive whole number")),
+                _ => return Err(bad("not a number: set it in the preset's [ppo] table")),
+            };
         }
+        *self = table
+            .try_into()
+            .map_err(|e| Error::InvalidArgument(format!("ppo overrides: {e}")))?;
         Ok(())
+    }
+
+    /// The hyperparameters an override may name: the scalar fields.
+    fn override_names(table: &toml::Table) -> Vec<String> {
+        table
+            .iter()
+            .filter(|(_, v)| {
+                matches!(
+                    v,
+                    toml::Value::Float(_) | toml::Value::Boolean(_) | toml::Value::Integer(_)
+                )
+            })
+            .map(|(k, _)| k.clone())
+            .collect()
     }
 
     /// Turns a schedule given as fractions of the epoch budget into epochs for a cell of
@@ -269,5 +271,38 @@ mod schedule_tests {
         let mut o = BTreeMap::new();
         o.insert("noise_decay_end_fraction".to_string(), 1.5);
         assert!(PpoConfig::default().apply_overrides(&o).is_err());
+    }
+
+    fn with(key: &str, v: f64) -> Result<PpoConfig> {
+        let mut p = PpoConfig::default();
+        p.apply_overrides(&[(key.to_string(), v)].into_iter().collect())?;
+        Ok(p)
+    }
+
+    #[test]
+    fn every_scalar_field_is_an_override_and_nothing_else_is() {
+        assert_eq!(with("learning_rate", 3e-4).unwrap().learning_rate, 3e-4);
+        assert!(!with("adaptive_lr", 0.0).unwrap().adaptive_lr);
+        assert_eq!(
+            with("num_learning_epochs", 3.0)
+                .unwrap()
+                .num_learning_epochs,
+            3
+        );
+        assert_eq!(with("noise_decay_start", 0.0).unwrap().noise_decay_start, 0);
+        assert_eq!(with("mirror_loss_coef", 0.1).unwrap().mirror_loss_coef, 0.1);
+        let err = |k: &str, v: f64| with(k, v).unwrap_err().to_string();
+        assert!(err("num_learning_epochs", 2.5).contains("positive whole"));
+        assert!(err("num_mini_batches", 0.0).contains("positive whole"));
+        assert!(err("noise_decay_start", -1.0).contains(">= 0"));
+        assert!(err("mirror_loss_coef", -0.1).contains(">= 0"));
+        assert!(err("learning_rate", f64::NAN).contains("finite"));
+        assert!(err("actor_hidden", 64.0).contains("set it in the preset"));
+        let unknown = err("bogus", 1.0);
+        assert!(
+            unknown.contains("bogus") && unknown.contains("mirror_augmentation, mirror_loss_coef"),
+            "{unknown}"
+        );
+        assert!(!unknown.contains("actor_hidden"), "{unknown}");
     }
 }
