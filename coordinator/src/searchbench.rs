@@ -9,6 +9,9 @@
 //! - **Grid, one run per point**: every point trained to the end once, one recorded
 //!   replicate drawn per point; the best drawn score is the answer. What a single-seed
 //!   grid finds on this data, the bar a search with one run per candidate can reach.
+//! - **Random search**: a number of grid points drawn at random, each trained to the end
+//!   once (one recorded replicate drawn); the best drawn score is the answer. The
+//!   baseline, at the evolutionary searches' budget.
 //! - **ASHA**: every replay draws one recorded replicate per point (the noise a single run
 //!   has) and runs the points as cells in a random order (the coordinator creates a halving
 //!   sweep's cells in a seeded random order) on `workers` simulated workers that lease the
@@ -220,6 +223,37 @@ pub fn replay_grid_single(rec: &Recording, seed: u64) -> Result<Replay, String> 
     }
     let ((i, j), _) = answer.ok_or("empty recording")?;
     Ok(judge(rec, rec.grid_epochs(), rec.mean(i, j), (i, j)))
+}
+
+/// One replay of a random search over the grid: `points` grid points drawn without
+/// replacement (with `seed`), each trained to the end once with one recorded replicate
+/// drawn; the best drawn score is the answer. The baseline every other strategy should
+/// beat at the same share of the grid's epochs (Bergstra and Bengio 2012 found random
+/// search a strong one on low-dimensional spaces).
+pub fn replay_random(rec: &Recording, points: usize, seed: u64) -> Result<Replay, String> {
+    let mut all: Vec<(usize, usize)> = (0..rec.w1_values.len())
+        .flat_map(|i| (0..rec.w2_values.len()).map(move |j| (i, j)))
+        .collect();
+    if points == 0 || points > all.len() {
+        return Err(format!(
+            "a random search of {points} points over a grid of {}: use 1 to {}",
+            all.len(),
+            all.len()
+        ));
+    }
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut answer: Option<((usize, usize), f64)> = None;
+    all.shuffle(&mut rng);
+    for &(i, j) in &all[..points] {
+        let p = rec.point(i, j).ok_or("unvalidated recording")?;
+        let score = p.runs[rng.random_range(0..p.runs.len())].score;
+        if answer.is_none_or(|(_, best)| score > best) {
+            answer = Some(((i, j), score));
+        }
+    }
+    let ((i, j), _) = answer.ok_or("empty recording")?;
+    let epochs = points as u64 * u64::from(rec.epochs);
+    Ok(judge(rec, epochs, rec.mean(i, j), (i, j)))
 }
 
 /// Successive halving settings of a replay.

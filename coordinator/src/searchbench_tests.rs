@@ -295,3 +295,21 @@ fn interpolation_hits_grid_points_and_rungs_need_evaluations() {
     holes.points.pop();
     assert!(holes.validate().unwrap_err().contains("no scored run"));
 }
+
+#[test]
+fn random_search_spends_its_share_and_finds_the_best_as_often_as_it_draws_it() {
+    let rec = synthetic(0.0);
+    let n = rec.w1_values.len() * rec.w2_values.len();
+    // Every point drawn: the single-run grid's answer, at the grid's cost.
+    let all = replay_random(&rec, n, 3).unwrap();
+    assert_eq!(all.epoch_fraction, 1.0);
+    assert!(all.found_best && all.regret.abs() < 1e-12);
+    // One point: its share of the epochs, and the best only when it is drawn (1 in n).
+    let one: Vec<Replay> = (0..2000)
+        .map(|k| replay_random(&rec, 1, k).unwrap())
+        .collect();
+    let s = summarise(&one);
+    assert!((s.epoch_fraction - 1.0 / n as f64).abs() < 1e-12);
+    assert!((s.p_best - 1.0 / n as f64).abs() < 0.03, "{s:?}");
+    assert!(replay_random(&rec, 0, 1).is_err() && replay_random(&rec, n + 1, 1).is_err());
+}

@@ -137,6 +137,10 @@ async fn main() -> anyhow::Result<()> {
                 genetic: true,
                 ..halved
             };
+            let points = rec.w1_values.len() * rec.w2_values.len();
+            // Random search at the evolutionary searches' budget: as many points as it buys.
+            let random_points =
+                ((budget_fraction * points as f64).round() as usize).clamp(1, points);
             let (best_point, best) = rec.best();
             let runs: usize = rec.points.iter().map(|p| p.runs.len()).sum();
             println!(
@@ -156,6 +160,8 @@ async fn main() -> anyhow::Result<()> {
             let g = replay_all(&|seed| searchbench::replay_grid_single(&rec, seed))
                 .map_err(anyhow::Error::msg)?;
             let a = replay_all(&|seed| searchbench::replay_asha(&rec, &asha, seed))
+                .map_err(anyhow::Error::msg)?;
+            let r = replay_all(&|seed| searchbench::replay_random(&rec, random_points, seed))
                 .map_err(anyhow::Error::msg)?;
             // A CMA-ES setting whose budget pays for no generation (a small grid, a large
             // population) gets a row that says so; the other strategies still print.
@@ -180,6 +186,10 @@ async fn main() -> anyhow::Result<()> {
                 (
                     "grid, one replicate drawn per point".to_string(),
                     Ok(searchbench::summarise(&g)),
+                ),
+                (
+                    format!("random search, {random_points} of {points} points"),
+                    Ok(searchbench::summarise(&r)),
                 ),
                 (
                     format!("asha rungs {rungs:?}, eta {reduction}, {workers} workers"),
