@@ -95,7 +95,7 @@ mod tests {
             );
             assert_eq!((r.w1_values[0], r.w1_values[3]), (2.0, 12.0));
             assert_eq!((r.w2_values[0], *r.w2_values.last().unwrap()), (w2, -2.0));
-            assert_eq!(r.eval_robots, 256, "issue 39: 256-robot evaluations");
+            assert_eq!(r.eval.robots, 256, "issue 39: 256-robot evaluations");
             assert_eq!(r.eval_levels_for("rough"), vec![0, 3, 5, 7]);
             assert_eq!(
                 r.finalists,

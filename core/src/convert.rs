@@ -6,7 +6,7 @@ use crate::records::{
 };
 use crate::spec::{Axis, EvalSpec, ResolvedSpec, Search, SearchSpec, SweepSpec};
 use crate::{CellState, Error, Result, SweepState};
-use gaitsweep_model::{GaitScore, LevelScore};
+use gaitsweep_model::{EvalSettings, GaitScore, LevelScore, TerrainKind};
 
 impl From<&Axis> for pb::Axis {
     fn from(a: &Axis) -> Self {
@@ -108,10 +108,10 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
             checkpoint_every: Some(s.checkpoint_every),
             seed: s.seed,
             ppo_overrides: s.ppo_overrides.clone(),
-            eval_robots: s.eval_robots as u32,
-            eval_seconds: s.eval_seconds,
+            eval_robots: s.eval.robots as u32,
+            eval_seconds: s.eval.seconds,
             seeds: s.replicates,
-            eval_every: s.eval_every,
+            eval_every: s.eval.every,
             search_method: s.search.method().into(),
             search_min_epochs: s.search.halving().map_or(0, |h| h.0),
             search_reduction: s.search.halving().map_or(0, |h| h.1),
@@ -121,8 +121,8 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
                 _ => 0.0,
             },
             search_budget_epochs: s.budget_epochs().unwrap_or(0),
-            eval_levels: s.eval_levels.iter().map(|l| u32::from(*l)).collect(),
-            score: s.score.to_string(),
+            eval_levels: s.eval.levels.iter().map(|l| u32::from(*l)).collect(),
+            score: s.eval.score.to_string(),
             finalists_top: s.finalists.map_or(0, |f| f.top),
             finalists_seeds: s.finalists.map_or(0, |f| f.seeds),
         }
@@ -253,6 +253,7 @@ impl From<&pb::CheckpointRef> for CheckpointRecord {
 /// What a worker needs to train `cell` of a sweep with `spec`: every value concrete (the
 /// spec's defaults were decided when the sweep was created).
 pub fn cell_task(cell: &CellRecord, spec: &ResolvedSpec) -> pb::CellTask {
+    let eval = spec.eval_for(&cell.terrain);
     pb::CellTask {
         cell: Some(cell.into()),
         robot: spec.robot.clone(),
@@ -261,17 +262,36 @@ pub fn cell_task(cell: &CellRecord, spec: &ResolvedSpec) -> pb::CellTask {
         epochs: cell.target_epochs,
         checkpoint_every: spec.checkpoint_every,
         ppo_overrides: spec.ppo_overrides.clone(),
-        eval_robots: spec.eval_robots as u32,
-        eval_seconds: spec.eval_seconds,
-        eval_every: spec.eval_every,
         budget_epochs: spec.epochs,
-        eval_levels: spec
-            .eval_levels_for(&cell.terrain)
-            .into_iter()
-            .map(u32::from)
-            .collect(),
-        score: spec.score.to_string(),
+        // The wire keeps the cell's evaluation settings as loose fields.
+        eval_robots: eval.robots as u32,
+        eval_seconds: eval.seconds,
+        eval_every: eval.every,
+        eval_levels: eval.levels.iter().map(|l| u32::from(*l)).collect(),
+        score: eval.score.to_string(),
     }
+}
+
+/// How the worker scores a task's cell on `terrain`: the task's loose evaluation fields
+/// as one value (levels clamped to 0-9; a fixed difficulty without levels is evaluated at
+/// that difficulty, as [`crate::defaults::eval_levels`] says). An unknown score variant is
+/// an error naming it.
+pub fn task_eval(
+    task: &pb::CellTask,
+    terrain: TerrainKind,
+) -> std::result::Result<EvalSettings, String> {
+    let levels: Vec<u8> = task.eval_levels.iter().map(|l| (*l).min(9) as u8).collect();
+    Ok(EvalSettings {
+        robots: task.eval_robots as usize,
+        seconds: task.eval_seconds,
+        levels: crate::defaults::eval_levels(
+            terrain,
+            task.difficulty.map(|d| d.min(9) as u8),
+            &levels,
+        ),
+        score: task.score.parse()?,
+        every: task.eval_every,
+    })
 }
 
 impl From<&CellRecord> for pb::Cell {
@@ -434,5 +454,65 @@ mod point_tests {
         assert!((s.ci95 - 12.706 * 0.1).abs() < 1e-9, "{s:?}");
         assert!((p[0].fall_rate.unwrap().mean - 0.05).abs() < 1e-12);
         assert_eq!((p[1].scored, p[1].score.unwrap().ci95), (1, 0.0));
+    }
+}
+
+#[cfg(test)]
+mod eval_tests {
+    use super::*;
+    use crate::spec::PresetGrid;
+    use crate::{CellId, SweepId};
+
+    #[test]
+    fn a_task_carries_its_cells_evaluation_and_back() {
+        let grid = PresetGrid {
+            w1: Axis::Values { values: vec![1.0] },
+            w2: Axis::Values { values: vec![-6.0] },
+            agents_per_cell: 8,
+            epochs: 10,
+        };
+        let spec = SweepSpec::from_toml(
+            "robot = \"anymal\"\nterrains = [\"flat\", \"rough\"]\npreset_grid = true\n\
+             [eval]\nrobots = 32\nlevels = [2, 4]\nscore = \"bounded\"\nevery = 5\n",
+        )
+        .unwrap()
+        .resolve_with(|_| Ok((grid, None)))
+        .unwrap();
+        for (terrain, kind, levels) in [
+            ("flat", TerrainKind::Flat, vec![0]),
+            ("rough", TerrainKind::Rough, vec![2, 4]),
+        ] {
+            let cell = CellRecord {
+                id: CellId(1),
+                sweep_id: SweepId(1),
+                terrain_index: 0,
+                terrain: terrain.into(),
+                w1_index: 0,
+                w2_index: 0,
+                w1: 1.0,
+                w2: -6.0,
+                seed: 1,
+                replicate: 0,
+                state: CellState::Queued,
+                attempts: 0,
+                epochs_done: 0,
+                target_epochs: 10,
+                score: None,
+                rung_score: None,
+                last_error: None,
+            };
+            let task = cell_task(&cell, &spec);
+            let e = task_eval(&task, kind).unwrap();
+            assert_eq!(e, spec.eval_for(terrain));
+            assert_eq!((e.robots, e.levels, e.every), (32, levels, 5));
+            assert_eq!(e.score, gaitsweep_model::ScoreVariant::Bounded);
+        }
+        let bad = pb::CellTask {
+            score: "eq5".into(),
+            ..Default::default()
+        };
+        assert!(task_eval(&bad, TerrainKind::Flat)
+            .unwrap_err()
+            .contains("eq5"));
     }
 }

@@ -2,7 +2,7 @@
 //! expansion into cells.
 
 use crate::{defaults, Error, Result};
-use gaitsweep_model::{ScoreVariant, TerrainKind};
+use gaitsweep_model::{EvalSettings, ScoreVariant, TerrainKind};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -158,21 +158,11 @@ pub struct ResolvedSpec {
     pub replicates: u32,
     /// PPO overrides.
     pub ppo_overrides: BTreeMap<String, f64>,
-    /// Robots in the evaluation rollout.
-    pub eval_robots: usize,
-    /// Evaluation seconds.
-    pub eval_seconds: f32,
-    /// Intermediate evaluations every this many epochs (0: none).
-    #[serde(default)]
-    pub eval_every: u32,
-    /// Difficulty levels of every evaluation of a cell on rough, stairs or slopes (see
-    /// [`ResolvedSpec::eval_levels_for`]); empty in specs stored before per-level
-    /// evaluation, which were evaluated at one level.
-    #[serde(default)]
-    pub eval_levels: Vec<u8>,
-    /// The progress term of the score (specs stored before the option read as Eq. 4).
-    #[serde(default)]
-    pub score: ScoreVariant,
+    /// How every cell is scored (robots, seconds, the levels of a terrain with levels, the
+    /// score's variant, the interval of periodic evaluations); a cell's own is
+    /// [`ResolvedSpec::eval_for`].
+    #[serde(flatten)]
+    pub eval: EvalSettings,
     /// Search strategy (specs stored before searches existed read as the grid).
     #[serde(default)]
     pub search: Search,
@@ -490,11 +480,13 @@ impl SweepSpec {
             seed: self.seed,
             replicates,
             ppo_overrides: self.ppo.clone(),
-            eval_robots: self.eval.robots.unwrap_or(defaults::EVAL_ROBOTS),
-            eval_seconds: self.eval.seconds.unwrap_or(defaults::EVAL_SECONDS),
-            eval_every: self.eval.every.unwrap_or(0),
-            eval_levels,
-            score,
+            eval: EvalSettings {
+                robots: self.eval.robots.unwrap_or(defaults::EVAL_ROBOTS),
+                seconds: self.eval.seconds.unwrap_or(defaults::EVAL_SECONDS),
+                levels: eval_levels,
+                score,
+                every: self.eval.every.unwrap_or(0),
+            },
             search,
             finalists,
         })
@@ -506,12 +498,20 @@ impl ResolvedSpec {
     /// has no levels), the spec's `eval_levels` elsewhere; a spec stored before per-level
     /// evaluation keeps the one level it was scored at (its difficulty, else 5).
     pub fn eval_levels_for(&self, terrain: &str) -> Vec<u8> {
-        if self.eval_levels.is_empty() {
+        if self.eval.levels.is_empty() {
             return vec![self.difficulty.unwrap_or(LEGACY_EVAL_LEVEL)];
         }
         match terrain.parse::<TerrainKind>() {
             Ok(TerrainKind::Flat) => vec![0],
-            _ => self.eval_levels.clone(),
+            _ => self.eval.levels.clone(),
+        }
+    }
+
+    /// How a cell on `terrain` is scored: the sweep's evaluation with that terrain's levels.
+    pub fn eval_for(&self, terrain: &str) -> EvalSettings {
+        EvalSettings {
+            levels: self.eval_levels_for(terrain),
+            ..self.eval.clone()
         }
     }
 
@@ -521,11 +521,11 @@ impl ResolvedSpec {
         if self.checkpoint_every == 0 {
             self.checkpoint_every = self.epochs.max(1);
         }
-        if self.eval_robots == 0 {
-            self.eval_robots = defaults::EVAL_ROBOTS;
+        if self.eval.robots == 0 {
+            self.eval.robots = defaults::EVAL_ROBOTS;
         }
-        if self.eval_seconds <= 0.0 {
-            self.eval_seconds = defaults::EVAL_SECONDS;
+        if self.eval.seconds <= 0.0 {
+            self.eval.seconds = defaults::EVAL_SECONDS;
         }
         self
     }

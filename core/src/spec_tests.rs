@@ -40,7 +40,7 @@ fn asha_rungs_grow_by_the_reduction_up_to_the_budget() {
         }
     );
     assert_eq!(r.rungs(), vec![100, 300, 900, 2700, 3000]);
-    assert_eq!(r.eval_every, 50);
+    assert_eq!(r.eval.every, 50);
     // Defaults: reduction 3, first rung at epochs / 27.
     let d = SweepSpec::from_toml(&format!("{base}[search]\nmethod = \"asha\"\n"))
         .unwrap()
@@ -57,11 +57,11 @@ fn asha_rungs_grow_by_the_reduction_up_to_the_budget() {
     json.as_object_mut().unwrap().remove("search");
     json.as_object_mut().unwrap().remove("eval_every");
     let old: ResolvedSpec = serde_json::from_value(json).unwrap();
-    assert_eq!((old.search, old.eval_every), (Search::Grid, 0));
+    assert_eq!((old.search, old.eval.every), (Search::Grid, 0));
     // The wire form round-trips.
     let wire = crate::pb::SweepSpec::from(&r);
     let back = SweepSpec::from(wire).resolve_with(ok).unwrap();
-    assert_eq!((back.search, back.eval_every), (r.search, 50));
+    assert_eq!((back.search, back.eval.every), (r.search, 50));
 }
 
 #[test]
@@ -324,17 +324,17 @@ fn a_score_covers_the_evaluation_levels_the_spec_resolves() {
         .unwrap()
         .resolve_with(ok)
         .unwrap();
-    assert_eq!(r.eval_levels, crate::defaults::EVAL_LEVELS);
+    assert_eq!(r.eval.levels, crate::defaults::EVAL_LEVELS);
     assert_eq!(r.eval_levels_for("flat"), [0]);
     assert_eq!(r.eval_levels_for("stairs"), [0, 3, 5, 7]);
-    assert_eq!(r.score, ScoreVariant::Eq4);
+    assert_eq!(r.eval.score, ScoreVariant::Eq4);
     let given = format!("{base}eval = {{ levels = [2, 6], score = \"bounded\" }}\n");
     let r = SweepSpec::from_toml(&given)
         .unwrap()
         .resolve_with(ok)
         .unwrap();
     assert_eq!(
-        (r.eval_levels_for("rough"), r.score),
+        (r.eval_levels_for("rough"), r.eval.score),
         (vec![2, 6], ScoreVariant::Bounded)
     );
     let fixed = format!("difficulty = 4\n{base}");
@@ -354,7 +354,7 @@ fn a_score_covers_the_evaluation_levels_the_spec_resolves() {
     old["difficulty"] = serde_json::Value::Null;
     let old: ResolvedSpec = serde_json::from_value(old).unwrap();
     assert_eq!(old.eval_levels_for("rough"), [LEGACY_EVAL_LEVEL]);
-    assert_eq!(old.score, ScoreVariant::Eq4);
+    assert_eq!(old.eval.score, ScoreVariant::Eq4);
     let bad = format!("{base}eval = {{ levels = [3, 12, 3], score = \"fast\" }}\n");
     let Err(Error::InvalidSpec(p)) = SweepSpec::from_toml(&bad).unwrap().resolve_with(ok) else {
         panic!("accepted {bad}")
@@ -424,8 +424,8 @@ fn defaults_are_decided_at_resolution() {
         .resolve_with(ok)
         .unwrap();
     assert_eq!(r.checkpoint_every, crate::defaults::CHECKPOINT_EVERY);
-    assert_eq!(r.eval_robots, crate::defaults::EVAL_ROBOTS);
-    assert_eq!(r.eval_seconds, crate::defaults::EVAL_SECONDS);
+    assert_eq!(r.eval.robots, crate::defaults::EVAL_ROBOTS);
+    assert_eq!(r.eval.seconds, crate::defaults::EVAL_SECONDS);
     let only_final = SweepSpec::from_toml(&format!("{base}checkpoint_every = 0\n"))
         .unwrap()
         .resolve_with(ok)
@@ -435,10 +435,10 @@ fn defaults_are_decided_at_resolution() {
         "only the final checkpoint"
     );
     let mut old = r.clone();
-    (old.checkpoint_every, old.eval_robots, old.eval_seconds) = (0, 0, 0.0);
+    (old.checkpoint_every, old.eval.robots, old.eval.seconds) = (0, 0, 0.0);
     let old = old.with_defaults();
     assert_eq!(
-        (old.checkpoint_every, old.eval_robots, old.eval_seconds),
+        (old.checkpoint_every, old.eval.robots, old.eval.seconds),
         (
             3000,
             crate::defaults::EVAL_ROBOTS,

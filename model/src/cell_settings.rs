@@ -9,6 +9,7 @@ use std::collections::BTreeMap;
 
 use crate::preset::{settings_on, DomainRandConfig, RewardConfig, TerrainOverrides};
 use crate::{defaults, PpoConfig, Result, ScoreVariant, TerrainKind};
+use serde::{Deserialize, Serialize};
 
 /// The settings of one cell: PPO (overrides applied, schedule in epochs), domain
 /// randomisation and the fixed reward weights.
@@ -64,19 +65,28 @@ impl CellSettings {
     }
 }
 
-/// How a cell's policy is scored, as one value from the sweep's spec (its `[eval]`) to the
-/// trainer: the deterministic policy in a rollout from [`crate::defaults::EVAL_SEED`].
-#[derive(Debug, Clone, PartialEq)]
+/// How a cell's policy is scored, as one value from the sweep's spec (its `[eval]`, stored in
+/// the resolved spec) to the trainer: the deterministic policy in a rollout from
+/// [`crate::defaults::EVAL_SEED`]. Serialised with the names a stored spec has always used
+/// (`eval_robots`, `eval_seconds`, `eval_levels`, `score`, `eval_every`), flattened into it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EvalSettings {
     /// Robots, one episode each, at each level.
+    #[serde(rename = "eval_robots")]
     pub robots: usize,
     /// Episode length (s).
+    #[serde(rename = "eval_seconds")]
     pub seconds: f32,
-    /// Difficulty levels (0-9); the score is the mean over them.
+    /// Difficulty levels (0-9); the score is the mean over them. In a sweep's spec: the
+    /// levels of a cell on a terrain with levels (empty in specs stored before per-level
+    /// evaluation; `ResolvedSpec::eval_for` gives a cell's).
+    #[serde(rename = "eval_levels", default)]
     pub levels: Vec<u8>,
-    /// The progress term of the composite score.
+    /// The progress term of the composite score (specs stored before it read as Eq. 4).
+    #[serde(default)]
     pub score: ScoreVariant,
     /// Evaluate every this many epochs as well (0: only at the end).
+    #[serde(rename = "eval_every", default)]
     pub every: u32,
 }
 

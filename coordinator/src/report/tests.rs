@@ -288,11 +288,13 @@ fn spec() -> ResolvedSpec {
         seed: 1,
         replicates: 1,
         ppo_overrides: Default::default(),
-        eval_robots: 0,
-        eval_seconds: 0.0,
-        eval_every: 0,
-        eval_levels: vec![],
-        score: Default::default(),
+        eval: gaitsweep_model::EvalSettings {
+            robots: 0,
+            seconds: 0.0,
+            levels: vec![],
+            score: Default::default(),
+            every: 0,
+        },
         search: Default::default(),
         finalists: None,
     }

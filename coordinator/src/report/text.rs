@@ -73,10 +73,10 @@ pub fn eval_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
     format!(
         "deterministic policy, {} robots x {} s at each level, {}; the score is the mean over the levels; \
          progress term: {}",
-        spec.eval_robots,
-        spec.eval_seconds,
+        spec.eval.robots,
+        spec.eval.seconds,
         levels.join("; "),
-        match spec.score {
+        match spec.eval.score {
             gaitsweep_model::ScoreVariant::Eq4 => "Eq. 4's (sum of squared step displacements)",
             gaitsweep_model::ScoreVariant::Bounded =>
                 "bounded (each step's displacement capped at its commanded distance)",

@@ -23,11 +23,13 @@ fn spec(w1: usize, w2: usize, terrains: Vec<TerrainKind>) -> ResolvedSpec {
         seed: 1,
         replicates: 1,
         ppo_overrides: Default::default(),
-        eval_robots: 0,
-        eval_seconds: 0.0,
-        eval_every: 0,
-        eval_levels: vec![],
-        score: Default::default(),
+        eval: gaitsweep_model::EvalSettings {
+            robots: 0,
+            seconds: 0.0,
+            levels: vec![],
+            score: Default::default(),
+            every: 0,
+        },
         search: Default::default(),
         finalists: None,
     }
@@ -225,7 +227,7 @@ async fn resume_points_at_the_latest_checkpoint_and_cancel_stops_all() {
 async fn a_retried_attempt_replaces_its_periodic_evaluations() {
     let (_d, store, w) = setup().await;
     let mut s = spec(1, 1, vec![TerrainKind::Flat]);
-    s.eval_every = 1;
+    s.eval.every = 1;
     store.create_sweep(&s, 0).await.unwrap();
     let eval = |score: f64| -> BTreeMap<String, f64> {
         [
@@ -977,7 +979,7 @@ async fn concurrent_reports_share_commits_and_a_bad_one_fails_alone() {
 async fn each_level_of_an_evaluation_is_stored() {
     let (_d, store, w) = setup().await;
     let mut sp = spec(1, 1, vec![TerrainKind::Rough]);
-    sp.eval_every = 1;
+    sp.eval.every = 1;
     let sweep = store.create_sweep(&sp, 0).await.unwrap();
     let g = store.lease_next(&w, 0, 1).await.unwrap().unwrap();
     // A periodic evaluation arrives as metrics, the final one as the result.
@@ -1024,7 +1026,7 @@ async fn the_readme_queries_run() {
     let mut s = spec(2, 2, vec![TerrainKind::Flat]);
     s.w2_values = vec![-6.0, -3.0];
     s.replicates = 2;
-    s.eval_every = 1;
+    s.eval.every = 1;
     let sweep = store.create_sweep(&s, 0).await.unwrap();
     assert_eq!(sweep.id.0, 1, "the README's examples query sweep 1");
     let mut k = 0.0;

@@ -9,7 +9,7 @@ use crate::{Error, Result};
 use gaitsweep_core::pb::{self, worker_service_client::WorkerServiceClient};
 use gaitsweep_core::reason;
 use gaitsweep_trainer::train::{
-    train_cell, CellOutcome, CellRunConfig, EpochMetrics, EvalSettings, TrainObserver,
+    train_cell, CellOutcome, CellRunConfig, EpochMetrics, TrainObserver,
 };
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
@@ -298,21 +298,7 @@ async fn run_lease<C: Coordinator>(ctx: &Ctx<C>, slot: u32, lease: pb::Lease) ->
         out_dir: dir.clone(),
         resume_from,
         ppo_overrides: task.ppo_overrides.clone(),
-        eval: EvalSettings {
-            robots: task.eval_robots as usize,
-            seconds: task.eval_seconds,
-            levels: gaitsweep_core::defaults::eval_levels(
-                terrain,
-                task.difficulty.map(|d| d.min(9) as u8),
-                &task
-                    .eval_levels
-                    .iter()
-                    .map(|l| (*l).min(9) as u8)
-                    .collect::<Vec<_>>(),
-            ),
-            score: task.score.parse().map_err(Error::Config)?,
-            every: task.eval_every,
-        },
+        eval: gaitsweep_core::convert::task_eval(&task, terrain).map_err(Error::Config)?,
     };
     let (tx, mut rx) = mpsc::unbounded_channel();
     let bridge_tx = tx.clone();
