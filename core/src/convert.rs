@@ -129,22 +129,32 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
     }
 }
 
+/// A gait score with the numeric components the wire and domain types share (the same
+/// names on both sides), then the given fields: the one list of both conversions.
+macro_rules! score_with_components {
+    ($($ty:ident)::+, $g:expr, { $($rest:tt)* }) => {
+        $($ty)::+ {
+            score: $g.score,
+            track: $g.track,
+            effort: $g.effort,
+            tilt: $g.tilt,
+            progress: $g.progress,
+            progress_bounded: $g.progress_bounded,
+            fall_rate: $g.fall_rate,
+            mean_vel_error: $g.mean_vel_error,
+            mean_speed: $g.mean_speed,
+            overspeed: $g.overspeed,
+            mean_abs_torque: $g.mean_abs_torque,
+            cost_of_transport: $g.cost_of_transport,
+            $($rest)*
+        }
+    };
+}
+
 impl From<&GaitScore> for pb::GaitScore {
     fn from(g: &GaitScore) -> Self {
-        pb::GaitScore {
-            score: g.score,
-            track: g.track,
-            effort: g.effort,
-            tilt: g.tilt,
-            progress: g.progress,
-            fall_rate: g.fall_rate,
-            mean_vel_error: g.mean_vel_error,
-            mean_abs_torque: g.mean_abs_torque,
-            cost_of_transport: g.cost_of_transport,
+        score_with_components!(pb::GaitScore, g, {
             robots: g.robots as u32,
-            progress_bounded: g.progress_bounded,
-            mean_speed: g.mean_speed,
-            overspeed: g.overspeed,
             levels: g
                 .levels
                 .iter()
@@ -153,26 +163,14 @@ impl From<&GaitScore> for pb::GaitScore {
                     score: Some((&l.score).into()),
                 })
                 .collect(),
-        }
+        })
     }
 }
 
 impl From<&pb::GaitScore> for GaitScore {
     fn from(g: &pb::GaitScore) -> Self {
-        GaitScore {
-            score: g.score,
-            track: g.track,
-            effort: g.effort,
-            tilt: g.tilt,
-            progress: g.progress,
-            fall_rate: g.fall_rate,
-            mean_vel_error: g.mean_vel_error,
-            mean_abs_torque: g.mean_abs_torque,
-            cost_of_transport: g.cost_of_transport,
+        score_with_components!(GaitScore, g, {
             robots: g.robots as usize,
-            progress_bounded: g.progress_bounded,
-            mean_speed: g.mean_speed,
-            overspeed: g.overspeed,
             levels: g
                 .levels
                 .iter()
@@ -181,7 +179,7 @@ impl From<&pb::GaitScore> for GaitScore {
                     score: l.score.as_ref().map(GaitScore::from).unwrap_or_default(),
                 })
                 .collect(),
-        }
+        })
     }
 }
 
@@ -462,6 +460,23 @@ mod eval_tests {
     use super::*;
     use crate::spec::PresetGrid;
     use crate::{CellId, SweepId};
+
+    #[test]
+    fn a_score_crosses_the_wire_unchanged() {
+        let mut g = GaitScore {
+            robots: 64,
+            ..Default::default()
+        };
+        for (i, (_, v)) in g.components_mut().into_iter().enumerate() {
+            *v = 0.5 + i as f64;
+        }
+        g.levels = vec![LevelScore {
+            level: 3,
+            score: g.clone(),
+        }];
+        let wire = pb::GaitScore::from(&g);
+        assert_eq!(GaitScore::from(&wire), g);
+    }
 
     #[test]
     fn a_task_carries_its_cells_evaluation_and_back() {
