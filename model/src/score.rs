@@ -114,6 +114,27 @@ impl GaitScore {
     }
 }
 
+/// The project's walking target (README, "Robot presets"): an evaluation walks when at most
+/// this share of its robots fell ...
+pub const WALK_MAX_FALL_RATE: f64 = 0.10;
+/// ... and its robots' mean speed error |v_cmd - v| is at most this (m/s).
+pub const WALK_MAX_VEL_ERROR: f64 = 0.25;
+
+impl GaitScore {
+    /// Whether this evaluation walks by the project's target (mean over its levels).
+    pub fn walks(&self) -> bool {
+        self.fall_rate <= WALK_MAX_FALL_RATE && self.mean_vel_error <= WALK_MAX_VEL_ERROR
+    }
+
+    /// Whether it walks at each of its levels (at its one level if it has none).
+    pub fn walks_at_every_level(&self) -> bool {
+        if self.levels.is_empty() {
+            return self.walks();
+        }
+        self.levels.iter().all(|l| l.score.walks())
+    }
+}
+
 /// Prefix of an evaluation's metrics in a training run's metrics: `eval/<component>` for
 /// the score, `eval/level/<level>/<component>` for each level's.
 pub const EVAL_METRICS_PREFIX: &str = "eval/";
@@ -235,6 +256,27 @@ mod tests {
                 ..Default::default()
             },
         }
+    }
+
+    #[test]
+    fn walking_is_few_falls_and_a_small_speed_error_at_every_level() {
+        let at = |fall_rate: f64, mean_vel_error: f64| GaitScore {
+            fall_rate,
+            mean_vel_error,
+            ..Default::default()
+        };
+        assert!(at(0.10, 0.25).walks() && !at(0.11, 0.1).walks() && !at(0.0, 0.26).walks());
+        let levels = |a: GaitScore, b: GaitScore| {
+            GaitScore::mean_of_levels(vec![
+                LevelScore { level: 0, score: a },
+                LevelScore { level: 7, score: b },
+            ])
+        };
+        let both = levels(at(0.02, 0.1), at(0.08, 0.2));
+        assert!(both.walks() && both.walks_at_every_level());
+        // 5% falls on average, but 10.5% at level 7.
+        let one = levels(at(0.0, 0.1), at(0.105, 0.2));
+        assert!(one.walks() && !one.walks_at_every_level());
     }
 
     #[test]

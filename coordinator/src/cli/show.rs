@@ -113,6 +113,22 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
             o,
             "\nterrain {terrain}: gait score / fall rate of its evaluation (rows w1, columns w2 = log10 torque weight)"
         );
+        let scores: Vec<gaitsweep_model::GaitScore> = cells
+            .iter()
+            .filter(|c| c.terrain_index as usize == ti)
+            .filter_map(|c| c.score.as_ref().map(Into::into))
+            .collect();
+        if !scores.is_empty() {
+            let _ = writeln!(
+                o,
+                "cells that walk (falls <= {:.0}%, |v_cmd - v| <= {} m/s, mean over levels): {} of {} scored; at every level: {}",
+                100.0 * gaitsweep_model::WALK_MAX_FALL_RATE,
+                gaitsweep_model::WALK_MAX_VEL_ERROR,
+                scores.iter().filter(|s| s.walks()).count(),
+                scores.len(),
+                scores.iter().filter(|s| s.walks_at_every_level()).count()
+            );
+        }
         let _ = write!(o, "{:>10}", "w1 \\ w2");
         for w2 in &s.w2_values {
             let _ = write!(o, " {:>width$.3}", w2);
@@ -355,6 +371,10 @@ mod tests {
         let text = render_show(&sweep, &cells);
         // Point w1 = 2: mean 0.5, sd 0.566, half-width 12.706 * 0.566 / sqrt(2) = 5.082.
         assert!(text.contains("0.500±5.082/ 25% "), "{text}");
+        assert!(
+            text.contains("cells that walk (falls <= 10%, |v_cmd - v| <= 0.25 m/s, mean over levels): 0 of 4 scored"),
+            "{text}"
+        );
         assert!(text.contains("0.600±0.000/ 25%*"), "{text}");
         assert!(
             text.contains("mean score 0.6000 ± 0.0000 (95% CI, sd 0.0000, 2 replicates)"),

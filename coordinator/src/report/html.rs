@@ -3,6 +3,7 @@
 
 use super::plots::{fmt_w, COMPONENTS};
 use super::{slug, GifStatus, ReportData};
+use gaitsweep_model::{GaitScore, WALK_MAX_FALL_RATE, WALK_MAX_VEL_ERROR};
 use std::fmt::Write;
 use std::path::PathBuf;
 
@@ -164,6 +165,21 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
     for terrain in &d.terrains {
         let s = slug(terrain);
         let _ = writeln!(o, "<h2>Terrain: {}</h2>", esc(terrain));
+        if let Some(t) = d.terrains.iter().position(|x| x == terrain) {
+            let scores: Vec<&GaitScore> = d.cells_of(t).filter_map(|c| c.score.as_ref()).collect();
+            if !scores.is_empty() {
+                let _ = writeln!(
+                    o,
+                    "<p>Cells that walk: <b>{}</b> of {} scored (fall rate &le; {:.0}% and |v_cmd &minus; v| &le; {} m/s, \
+                     mean over the evaluation levels); at every level: <b>{}</b>.</p>",
+                    scores.iter().filter(|s| s.walks()).count(),
+                    scores.len(),
+                    100.0 * WALK_MAX_FALL_RATE,
+                    WALK_MAX_VEL_ERROR,
+                    scores.iter().filter(|s| s.walks_at_every_level()).count(),
+                );
+            }
+        }
         fig(
             &mut o,
             &format!("candidates_{s}"),

@@ -39,6 +39,14 @@ fn synthetic() -> ReportData {
                     (0, 0, 3) => ("running", None),
                     (1, 2, 0) => ("failed", None),
                     (1, 0, 0) => ("done", Some(score(f64::NAN))),
+                    // The best row tracks its commands: it walks.
+                    _ if i == 2 => (
+                        "done",
+                        Some(GaitScore {
+                            mean_vel_error: 0.1,
+                            ..score(v)
+                        }),
+                    ),
                     _ => ("done", Some(score(v))),
                 };
                 let curves = BTreeMap::from([
@@ -215,6 +223,9 @@ fn every_picture_is_a_whole_png_and_svg() {
         "the worker binary was not found",
         "worker &lt;gone&gt;",
         "class=\"best\"",
+        // Flat: the w1 = 12 row (4 cells) walks, 11 scored; rough: 3 of that row (one failed).
+        "Cells that walk: <b>4</b> of 11 scored",
+        "Cells that walk: <b>3</b> of 11 scored",
     ] {
         assert!(html.contains(needle), "index.html lacks {needle:?}");
     }
