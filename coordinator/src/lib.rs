@@ -16,6 +16,7 @@ pub mod loadgen;
 pub mod presets;
 pub mod report;
 pub mod sched;
+pub mod search_method;
 pub mod searchbench;
 pub mod serve;
 pub mod service;

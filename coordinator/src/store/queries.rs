@@ -3,9 +3,12 @@
 
 use super::rows::spec_of;
 use crate::across::ScoredCell;
+use crate::search_method::CellView;
 use crate::{Error, Result};
-use gaitsweep_core::{ResolvedSpec, SweepId};
+use gaitsweep_core::{CellId, CellState, ResolvedSpec, SweepId};
 use sqlx::{Any, Executor};
+use std::collections::BTreeMap;
+use std::str::FromStr;
 
 /// A sweep's name, state and spec (its defaults filled in).
 #[derive(Debug, Clone)]
@@ -108,4 +111,37 @@ pub(super) async fn scored_cells<'e>(
     .fetch_all(db)
     .await?;
     Ok(rows.into_iter().map(ScoredCell::from_row).collect())
+}
+
+/// Every cell of `sweep` as its search method sees it ([`SearchMethod::react`]), in id
+/// order: indices, state, final score and rung evaluations.
+///
+/// [`SearchMethod::react`]: crate::search_method::SearchMethod::react
+pub(super) async fn search_view(tx: &mut super::sql::Tx, sweep: SweepId) -> Result<Vec<CellView>> {
+    let rows: Vec<(i64, i64, i64, String, Option<f64>)> = sqlx::query_as(
+        "SELECT c.id, c.w1_index, c.w2_index, c.state, s.score FROM cells c \
+         LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id",
+    )
+    .bind(sweep.0)
+    .fetch_all(&mut **tx)
+    .await?;
+    let mut rungs: BTreeMap<i64, BTreeMap<u32, f64>> = BTreeMap::new();
+    for e in evaluations(&mut **tx, sweep, EvalKinds::Rungs).await? {
+        rungs
+            .entry(e.cell_id)
+            .or_default()
+            .insert(e.epoch as u32, e.score);
+    }
+    rows.into_iter()
+        .map(|(id, w1_index, w2_index, state, score)| {
+            Ok(CellView {
+                id: CellId(id),
+                w1_index: w1_index as u32,
+                w2_index: w2_index as u32,
+                state: CellState::from_str(&state)?,
+                score,
+                rungs: rungs.remove(&id).unwrap_or_default(),
+            })
+        })
+        .collect()
 }

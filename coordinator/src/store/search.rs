@@ -4,16 +4,17 @@
 //! attempt.
 
 use super::promotion::finish_if_done;
-use super::queries::{self, EvalKinds};
+use super::queries;
 use super::score_sql::ScoreTable;
 use super::sql::Tx;
 use super::tx::{cell_tx, end_winning_attempt, refuse_closed, require_uploaded};
 use super::ResultOutcome;
-use crate::evolution::{self, EvolutionParams, NextStep, Optimizer};
-use crate::{asha, Error, Result};
+use crate::asha::Decision;
+use crate::search_method::{self, Action};
+use crate::{Error, Result};
 use gaitsweep_core::records::RungDecisionRecord;
 use gaitsweep_core::spec::CellPlan;
-use gaitsweep_core::{CellId, CellState, LeaseId, ResolvedSpec, Search, SweepId};
+use gaitsweep_core::{CellId, CellState, LeaseId, SweepId};
 use gaitsweep_model::GaitScore;
 use std::collections::BTreeMap;
 
@@ -71,8 +72,7 @@ pub(super) async fn rung_result(
     .bind(cell_id.0)
     .execute(&mut **tx)
     .await?;
-    let decisions = apply_asha(tx, sweep, now_ms).await?;
-    apply_evolution(tx, sweep).await?;
+    let decisions = apply_search(tx, sweep, now_ms).await?;
     let cell = cell_tx(tx, cell_id).await?;
     let finished = finish_if_done(tx, sweep, now_ms).await?;
     Ok(ResultOutcome {
@@ -84,106 +84,95 @@ pub(super) async fn rung_result(
     })
 }
 
-/// Takes the successive-halving decisions that are due in a sweep ([`asha::decide`]) and
-/// records them: `rung_decisions` rows, continued cells queued for their next rung (they
-/// resume from their rung checkpoint), stopped cells `stopped`. Nothing for a grid.
-pub(super) async fn apply_asha(
+/// Asks the sweep's search method ([`crate::search_method`]) what is due, given its cells,
+/// and applies it: rung decisions recorded (`rung_decisions`), continued cells queued for
+/// their next rung (they resume from their rung checkpoint), stopped cells `stopped`, a new
+/// generation's cells queued (only while the sweep runs). Returns the rung decisions.
+pub(super) async fn apply_search(
     tx: &mut Tx,
     sweep: SweepId,
     now_ms: i64,
 ) -> Result<Vec<RungDecisionRecord>> {
-    let spec = queries::sweep_spec(&mut **tx, sweep).await?.spec;
-    let Some(reduction) = spec.halving_reduction() else {
+    let queries::SweepSpecRow { spec, state, .. } = queries::sweep_spec(&mut **tx, sweep).await?;
+    let method = search_method::method_for(&spec);
+    if !method.reacts() {
         return Ok(vec![]);
-    };
+    }
+    let cells = queries::search_view(tx, sweep).await?;
+    let actions = method.react(&spec, &cells).map_err(Error::BadRequest)?;
     let rungs = spec.rungs();
-    // An evolutionary search halves inside each generation (w1_index): its candidates
-    // compete with each other, not with earlier generations, and synchronously (a rung is
-    // decided once none of the generation trains): the next generation waits for the whole
-    // one anyway, and the budget buys generations at synchronous halving's cost, which
-    // asynchronous promotion could overrun.
-    let generations = spec.search.generations().is_some();
-    let states: Vec<(i64, String, i64)> =
-        sqlx::query_as("SELECT id, state, w1_index FROM cells WHERE sweep_id = $1 ORDER BY id")
-            .bind(sweep.0)
-            .fetch_all(&mut **tx)
-            .await?;
-    let evals = queries::evaluations(&mut **tx, sweep, EvalKinds::Rungs).await?;
-    let mut at: BTreeMap<(i64, i64), f64> = BTreeMap::new();
-    for e in evals {
-        at.insert((e.cell_id, e.epoch), e.score);
-    }
-    let mut groups: BTreeMap<i64, Vec<asha::AshaCell>> = BTreeMap::new();
-    for (id, state, generation) in &states {
-        let cell = {
-            let scores = rungs[..rungs.len() - 1]
-                .iter()
-                .map_while(|r| at.get(&(*id, i64::from(*r))).copied())
-                .collect();
-            let standing = match state.as_str() {
-                "queued" | "running" => asha::Standing::Training,
-                "paused" => asha::Standing::Paused,
-                _ => asha::Standing::Closed,
-            };
-            asha::AshaCell {
-                cell: CellId(*id),
-                scores,
-                standing,
-            }
-        };
-        groups
-            .entry(if generations { *generation } else { 0 })
-            .or_default()
-            .push(cell);
-    }
-    let due: Vec<asha::Decision> = groups
-        .values()
-        .filter(|cells| !generations || asha::no_cell_training(cells))
-        .flat_map(|cells| asha::decide(cells, rungs.len(), reduction))
-        .collect();
     let mut out = Vec::new();
-    for d in due {
-        let epoch = rungs[d.rung];
-        sqlx::query(
-            "INSERT INTO rung_decisions (cell_id, rung, epoch, score, decision, decided_unix_ms) VALUES ($1, $2, $3, $4, $5, $6)",
-        )
-        .bind(d.cell.0)
-        .bind(d.rung as i64)
-        .bind(i64::from(epoch))
-        .bind(d.score)
-        .bind(if d.continued { "continue" } else { "stop" })
-        .bind(now_ms)
-        .execute(&mut **tx)
-        .await?;
-        if d.continued {
-            sqlx::query("UPDATE cells SET state = 'queued', target_epochs = $1 WHERE id = $2 AND state = 'paused'")
-                .bind(i64::from(rungs[d.rung + 1]))
-                .bind(d.cell.0)
-                .execute(&mut **tx)
-                .await?;
-        } else {
-            sqlx::query("UPDATE cells SET state = 'stopped' WHERE id = $1 AND state = 'paused'")
-                .bind(d.cell.0)
-                .execute(&mut **tx)
-                .await?;
+    for action in actions {
+        match action {
+            Action::Rung(d) => out.push(apply_rung_decision(tx, &rungs, d, now_ms).await?),
+            Action::Queue {
+                generation,
+                cells,
+                target,
+            } if state == "running" => {
+                insert_cells(tx, sweep, &cells, target).await?;
+                tracing::info!(
+                    sweep = sweep.0,
+                    method = method.name(),
+                    generation,
+                    cells = cells.len(),
+                    "next generation queued"
+                );
+            }
+            Action::Queue { .. } => {}
         }
-        tracing::info!(
-            cell = d.cell.0,
-            rung = d.rung,
-            epoch,
-            score = d.score,
-            continued = d.continued,
-            "rung decision"
-        );
-        out.push(RungDecisionRecord {
-            cell: cell_tx(tx, d.cell).await?,
-            rung: d.rung as u32,
-            epoch,
-            score: d.score,
-            continued: d.continued,
-        });
     }
     Ok(out)
+}
+
+/// Records one successive-halving decision and moves its cell on or stops it.
+async fn apply_rung_decision(
+    tx: &mut Tx,
+    rungs: &[u32],
+    d: Decision,
+    now_ms: i64,
+) -> Result<RungDecisionRecord> {
+    let epoch = rungs[d.rung];
+    sqlx::query(
+        "INSERT INTO rung_decisions (cell_id, rung, epoch, score, decision, decided_unix_ms) VALUES ($1, $2, $3, $4, $5, $6)",
+    )
+    .bind(d.cell.0)
+    .bind(d.rung as i64)
+    .bind(i64::from(epoch))
+    .bind(d.score)
+    .bind(if d.continued { "continue" } else { "stop" })
+    .bind(now_ms)
+    .execute(&mut **tx)
+    .await?;
+    if d.continued {
+        sqlx::query(
+            "UPDATE cells SET state = 'queued', target_epochs = $1 WHERE id = $2 AND state = 'paused'",
+        )
+        .bind(i64::from(rungs[d.rung + 1]))
+        .bind(d.cell.0)
+        .execute(&mut **tx)
+        .await?;
+    } else {
+        sqlx::query("UPDATE cells SET state = 'stopped' WHERE id = $1 AND state = 'paused'")
+            .bind(d.cell.0)
+            .execute(&mut **tx)
+            .await?;
+    }
+    tracing::info!(
+        cell = d.cell.0,
+        rung = d.rung,
+        epoch,
+        score = d.score,
+        continued = d.continued,
+        "rung decision"
+    );
+    Ok(RungDecisionRecord {
+        cell: cell_tx(tx, d.cell).await?,
+        rung: d.rung as u32,
+        epoch,
+        score: d.score,
+        continued: d.continued,
+    })
 }
 
 /// Stores an intermediate evaluation a worker logged as the metrics `eval/*` at `epoch`
@@ -231,23 +220,6 @@ pub(super) async fn record_periodic_eval(
     Ok(())
 }
 
-/// The evolutionary search's parameters for a spec, or `None` for other searches.
-pub(super) fn evolution_params(spec: &ResolvedSpec) -> Option<EvolutionParams> {
-    let (population, generations) = spec.search.generations()?;
-    let optimizer = match spec.search {
-        Search::Cmaes { sigma, .. } => Optimizer::Cmaes { sigma },
-        _ => Optimizer::genetic(&spec.w1_values, &spec.w2_values),
-    };
-    let (lo, hi) = spec.bounds();
-    Some(EvolutionParams {
-        bounds: evolution::Bounds { lo, hi },
-        population: population as usize,
-        optimizer,
-        generations,
-        seed: spec.seed,
-    })
-}
-
 /// Inserts `cells` into a sweep, queued, each training to `target` epochs first.
 pub(super) async fn insert_cells(
     tx: &mut Tx,
@@ -274,117 +246,4 @@ pub(super) async fn insert_cells(
         .await?;
     }
     Ok(())
-}
-
-/// The first generation of an evolutionary search.
-pub(super) fn first_generation(spec: &ResolvedSpec) -> Result<Vec<[f64; 2]>> {
-    let params = evolution_params(spec)
-        .ok_or_else(|| Error::BadRequest("the spec's search is not evolutionary".into()))?;
-    match evolution::next_step(&params, &[]).map_err(Error::BadRequest)? {
-        NextStep::Generation(c) => Ok(c),
-        NextStep::Done(why) => Err(Error::BadRequest(format!(
-            "the evolutionary search has nothing to train: {why}"
-        ))),
-    }
-}
-
-/// Once every cell of an evolutionary search's latest generation has ended, asks CMA-ES for
-/// the next one (replaying the stored generations, see [`crate::evolution`]) and queues its
-/// cells; returns the new generation's number and size. A candidate's score is the mean of
-/// its scored replicates; one with none (failed for good) ranks below its generation.
-/// Nothing for other searches, an open generation or a sweep that is not running.
-pub(super) async fn apply_evolution(tx: &mut Tx, sweep: SweepId) -> Result<Option<(u32, usize)>> {
-    let queries::SweepSpecRow { spec, state, .. } = queries::sweep_spec(&mut **tx, sweep).await?;
-    let Some(params) = evolution_params(&spec) else {
-        return Ok(None);
-    };
-    if state != "running" {
-        return Ok(None);
-    }
-    let rows: Vec<(i64, i64, String, Option<f64>)> = sqlx::query_as(
-        "SELECT c.w1_index, c.w2_index, c.state, s.score FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
-         WHERE c.sweep_id = $1 ORDER BY c.w1_index, c.w2_index, c.replicate",
-    )
-    .bind(sweep.0)
-    .fetch_all(&mut **tx)
-    .await?;
-    if rows
-        .iter()
-        .any(|r| matches!(r.2.as_str(), "queued" | "running" | "paused"))
-    {
-        return Ok(None);
-    }
-    let generations = rows.iter().map(|r| r.0 + 1).max().unwrap_or(0) as usize;
-    let mut sums: Vec<Vec<(f64, u32)>> = vec![vec![(0.0, 0); params.population]; generations];
-    for (g, k, _, score) in &rows {
-        let slot = &mut sums[*g as usize][*k as usize];
-        if let Some(s) = score {
-            slot.0 += s;
-            slot.1 += 1;
-        }
-    }
-    // With successive halving inside generations, a candidate stopped at a rung is ranked
-    // by how far it got, then by its score there.
-    let halted = if spec.halving_reduction().is_some() {
-        let rungs = spec.rungs();
-        let evals = queries::evaluations(&mut **tx, sweep, EvalKinds::Rungs).await?;
-        let mut deepest: BTreeMap<(i64, i64), (usize, f64)> = BTreeMap::new();
-        for queries::EvalPoint {
-            w1_index: g,
-            w2_index: k,
-            epoch,
-            score,
-            ..
-        } in evals
-        {
-            if let Some(depth) = rungs.iter().position(|r| i64::from(*r) == epoch) {
-                deepest.insert((g, k), (depth, score));
-            }
-        }
-        Some((rungs.len() - 1, deepest))
-    } else {
-        None
-    };
-    let history: Vec<Vec<f64>> = sums
-        .iter()
-        .enumerate()
-        .map(|(g, cands)| {
-            let values: Vec<Option<f64>> = cands
-                .iter()
-                .enumerate()
-                .map(|(k, (sum, n))| {
-                    let fin = (*n > 0).then(|| sum / f64::from(*n));
-                    match &halted {
-                        None => fin,
-                        Some((last, deepest)) => match fin {
-                            Some(v) => Some(evolution::halving_fitness(*last, v)),
-                            None => deepest
-                                .get(&(g as i64, k as i64))
-                                .map(|(d, v)| evolution::halving_fitness(*d, *v)),
-                        },
-                    }
-                })
-                .collect();
-            evolution::failed_fitness(&values)
-        })
-        .collect();
-    match evolution::next_step(&params, &history).map_err(Error::BadRequest)? {
-        NextStep::Generation(candidates) => {
-            let generation = generations as u32;
-            let cells = spec.candidate_cells(generation, &candidates);
-            insert_cells(tx, sweep, &cells, spec.rungs()[0]).await?;
-            let n = cells.len();
-            tracing::info!(
-                sweep = sweep.0,
-                generation,
-                cells = n,
-                "evolutionary search: next generation queued"
-            );
-            Ok(Some((generation, n)))
-        }
-        NextStep::Done(why) => {
-            tracing::info!(sweep = sweep.0, generations, reason = %why, "evolutionary search done");
-            Ok(None)
-        }
-    }
 }

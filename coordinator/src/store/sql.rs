@@ -12,7 +12,7 @@ use super::promotion::{finish_if_done, promote_point};
 use super::queries;
 use super::rows::{CELL_COLUMNS, SWEEP_COLUMNS};
 use super::score_sql::ScoreTable;
-use super::search::{self, apply_asha, rung_result};
+use super::search::{self, rung_result};
 use super::tx::{
     cell_from_row, cell_tx, checkpoint_of, end_winning_attempt, lease_cell, refuse_closed,
     require_uploaded, sweep_from_row, sweep_tx, LeaseCell,
@@ -179,11 +179,9 @@ impl Store for SqlStore {
         .fetch_one(&mut *tx)
         .await?;
         // A grid is stored whole; an evolutionary search starts with its first generation.
-        let cells = if search::evolution_params(spec).is_some() {
-            spec.candidate_cells(0, &search::first_generation(spec)?)
-        } else {
-            spec.cells_in_lease_order()
-        };
+        let cells = crate::search_method::method_for(spec)
+            .initial_cells(spec)
+            .map_err(Error::BadRequest)?;
         search::insert_cells(&mut tx, SweepId(id), &cells, spec.rungs()[0]).await?;
         let rec = sweep_tx(&mut tx, SweepId(id)).await?;
         tx.commit().await?;
@@ -547,7 +545,7 @@ impl Store for SqlStore {
         .await?;
         let cell = cell_tx(&mut tx, cell_id).await?;
         let promotions = promote_point(&mut tx, &cell, now_ms).await?;
-        search::apply_evolution(&mut tx, sweep).await?;
+        search::apply_search(&mut tx, sweep, now_ms).await?;
         let finished = finish_if_done(&mut tx, sweep, now_ms).await?;
         tx.commit().await?;
         Ok(ResultOutcome {
@@ -616,10 +614,9 @@ impl Store for SqlStore {
                 .execute(&mut *tx)
                 .await?;
         }
-        // A cell that failed for good may close a rung others wait at.
-        let decisions = apply_asha(&mut tx, sweep, now_ms).await?;
-        // ... or the last open cell of an evolutionary search's generation.
-        search::apply_evolution(&mut tx, sweep).await?;
+        // A cell that failed for good may close a rung others wait at, or the last open
+        // cell of an evolutionary search's generation.
+        let decisions = search::apply_search(&mut tx, sweep, now_ms).await?;
         let cell = cell_tx(&mut tx, cell_id).await?;
         let finished = finish_if_done(&mut tx, sweep, now_ms).await?;
         tx.commit().await?;
