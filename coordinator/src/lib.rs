@@ -3,20 +3,16 @@
 //! best model of each sweep.
 
 pub mod across;
-pub mod asha;
 pub mod auth;
 pub mod blobs;
 pub mod error;
-pub mod evolution;
 pub mod finalists;
-pub mod genetic;
 pub mod leases;
 pub mod live;
 pub mod loadgen;
 pub mod presets;
 pub mod report;
 pub mod sched;
-pub mod search_method;
 pub mod searchbench;
 pub mod serve;
 pub mod service;

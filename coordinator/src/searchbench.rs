@@ -16,11 +16,11 @@
 //!   has) and runs the points as cells in a random order (the coordinator creates a halving
 //!   sweep's cells in a seeded random order) on `workers` simulated workers that lease the
 //!   lowest queued cell first, as the coordinator does (so a continued cell goes before the
-//!   cells still waiting for their first rung), with [`crate::asha::decide`], the function
+//!   cells still waiting for their first rung), with [`gaitsweep_search::asha::decide`], the function
 //!   the coordinator uses; workers' speeds are jittered so that arrivals interleave. A cell's rung score
 //!   is its replicate's evaluation at the rung epoch. The answer is the best final score
 //!   among the cells trained to the end.
-//! - **CMA-ES**: [`crate::evolution::next_step`] over the axes' rectangle with the replay's
+//! - **CMA-ES**: [`gaitsweep_search::evolution::next_step`] over the axes' rectangle with the replay's
 //!   seed and the coordinator's generation count for the budget. A candidate's run is the
 //!   surface of point means, interpolated bilinearly in (w1, w2) between the four
 //!   surrounding grid points, plus one run's noise: the deviation of a replicate drawn at
@@ -31,8 +31,8 @@
 //!   epochs counted are those trained. Its answer is the candidate trained to the end with
 //!   the best observed score; its true value is the interpolation of the point means.
 //!
-//! - **Genetic algorithm**: [`crate::evolution::next_step`] with the genetic algorithm over
-//!   the grid's points ([`crate::genetic`]), budgeted and halved as CMA-ES is. Its
+//! - **Genetic algorithm**: [`gaitsweep_search::evolution::next_step`] with the genetic algorithm over
+//!   the grid's points ([`gaitsweep_search::genetic`]), budgeted and halved as CMA-ES is. Its
 //!   candidates are grid points, so a candidate's run is a replicate drawn at its point and
 //!   no interpolation is involved.
 //!
@@ -40,9 +40,10 @@
 //! and is *within 5%* when the answer's true value is at least the best mean minus 5% of
 //! its magnitude. Regret is the best mean minus the answer's true value.
 
-use crate::asha::{self, AshaCell, Standing};
-use crate::evolution::{self, Bounds, EvolutionParams, NextStep, Optimizer};
 use gaitsweep_core::CellId;
+use gaitsweep_search::asha::{self, AshaCell, Standing};
+use gaitsweep_search::evolution::{self, Bounds, EvolutionParams, NextStep, Optimizer};
+use gaitsweep_search::random::random_points;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
@@ -227,24 +228,23 @@ pub fn replay_grid_single(rec: &Recording, seed: u64) -> Result<Replay, String> 
 
 /// One replay of a random search over the grid: `points` grid points drawn without
 /// replacement (with `seed`), each trained to the end once with one recorded replicate
-/// drawn; the best drawn score is the answer. The baseline every other strategy should
+/// drawn; the best drawn score is the answer (the points are the coordinator's
+/// `method = "random"` draw for the same seed). The baseline every other strategy should
 /// beat at the same share of the grid's epochs (Bergstra and Bengio 2012 found random
 /// search a strong one on low-dimensional spaces).
 pub fn replay_random(rec: &Recording, points: usize, seed: u64) -> Result<Replay, String> {
-    let mut all: Vec<(usize, usize)> = (0..rec.w1_values.len())
-        .flat_map(|i| (0..rec.w2_values.len()).map(move |j| (i, j)))
-        .collect();
-    if points == 0 || points > all.len() {
+    let grid = rec.w1_values.len() * rec.w2_values.len();
+    if points == 0 || points > grid {
         return Err(format!(
-            "a random search of {points} points over a grid of {}: use 1 to {}",
-            all.len(),
-            all.len()
+            "a random search of {points} points over a grid of {grid}: use 1 to {grid}"
         ));
     }
+    // The coordinator's draw (`method = "random"` with this seed); which recorded run
+    // stands for a point is the replay's own draw.
+    let drawn = random_points(rec.w1_values.len(), rec.w2_values.len(), points, seed);
     let mut rng = StdRng::seed_from_u64(seed);
     let mut answer: Option<((usize, usize), f64)> = None;
-    all.shuffle(&mut rng);
-    for &(i, j) in &all[..points] {
+    for &(i, j) in &drawn {
         let p = rec.point(i, j).ok_or("unvalidated recording")?;
         let score = p.runs[rng.random_range(0..p.runs.len())].score;
         if answer.is_none_or(|(_, best)| score > best) {
@@ -289,7 +289,7 @@ pub fn asha_rungs(rec: &Recording, s: &AshaSetup) -> Result<Vec<u32>, String> {
 /// `workers` simulated workers (one cell each, the same speed with a random jitter so that
 /// arrivals interleave as on a real cluster) lease the queued cell with the lowest index
 /// first (the coordinator leases the lowest cell id, so a continued cell goes before the
-/// cells still waiting for their first rung), and [`crate::asha::decide`] continues or stops
+/// cells still waiting for their first rung), and [`gaitsweep_search::asha::decide`] continues or stops
 /// each cell at each rung. `values[c][k]` is cell `c`'s score at `rungs[k]` (the last one
 /// its final score). With `synchronous` a rung is decided only while no cell trains, as
 /// the coordinator does inside an evolutionary search's generation. Returns the index of

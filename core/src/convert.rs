@@ -83,6 +83,21 @@ impl From<pb::SweepSpec> for SweepSpec {
     }
 }
 
+/// The resolved spec a wire spec stands for, as the coordinator sends it (every default
+/// filled in, its axes as values): it resolves to itself, its own axes standing for the
+/// robot's grid, so a client can ask the search what it is without the robot's preset.
+pub fn resolved_from_wire(spec: pb::SweepSpec) -> Result<ResolvedSpec> {
+    let axis =
+        |a: &Option<pb::Axis>| axis_from_wire(a.clone()).unwrap_or(Axis::Values { values: vec![] });
+    let grid = crate::spec::PresetGrid {
+        w1: axis(&spec.w1),
+        w2: axis(&spec.w2),
+        agents_per_cell: spec.agents_per_cell as usize,
+        epochs: spec.epochs,
+    };
+    SweepSpec::from(spec).resolve_with(|_| Ok((grid, None)))
+}
+
 impl From<&ResolvedSpec> for pb::SweepSpec {
     fn from(s: &ResolvedSpec) -> Self {
         pb::SweepSpec {

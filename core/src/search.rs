@@ -1,5 +1,5 @@
 //! How a sweep spends its epochs: the `[search]` section as written, its resolved form
-//! (grid, asynchronous successive halving, CMA-ES, genetic), its validation and the
+//! (grid, asynchronous successive halving, CMA-ES, genetic, random), its validation and the
 //! successive-halving rungs and costs.
 
 use crate::spec::SweepSpec;
@@ -10,8 +10,8 @@ use serde::{Deserialize, Serialize};
 #[serde(deny_unknown_fields)]
 pub struct SearchSpec {
     /// `grid` (every cell to the end, the default), `asha` (asynchronous successive
-    /// halving), `cmaes` (CMA-ES in the axes' rectangle) or `genetic` (a genetic algorithm
-    /// over the grid's points).
+    /// halving), `cmaes` (CMA-ES in the axes' rectangle), `genetic` (a genetic algorithm
+    /// over the grid's points) or `random` (grid points drawn at random).
     pub method: String,
     /// ASHA: epochs of the first rung (default: epochs / reduction^3, at least 1).
     #[serde(default)]
@@ -26,8 +26,9 @@ pub struct SearchSpec {
     /// [`DEFAULT_SIGMA`]).
     #[serde(default)]
     pub sigma: Option<f64>,
-    /// CMA-ES and genetic: training epochs over all candidates and replicates (default: a
-    /// third of the epochs the full grid would train).
+    /// CMA-ES, genetic and random: training epochs over all candidates (random: points,
+    /// on every terrain) and replicates (default: a third of the epochs the full grid would
+    /// train).
     #[serde(default)]
     pub budget_epochs: Option<u64>,
 }
@@ -82,6 +83,12 @@ pub enum Search {
         #[serde(default)]
         reduction: u32,
     },
+    /// A plain random search over the grid: `points` grid points drawn from the sweep's
+    /// seed, each trained as the grid would (every terrain, every replicate, to the end).
+    Random {
+        /// Grid points drawn (1 to the grid's points).
+        points: u32,
+    },
 }
 
 impl Search {
@@ -92,7 +99,32 @@ impl Search {
             Search::Asha { .. } => "asha",
             Search::Cmaes { .. } => "cmaes",
             Search::Genetic { .. } => "genetic",
+            Search::Random { .. } => "random",
         }
+    }
+
+    /// The epochs a search with a fixed budget trains in all, given the spec's epochs,
+    /// replicates, terrains and rungs; `None` for the grid (its cells tell) and ASHA (it
+    /// decides as it goes).
+    pub fn budget_epochs(
+        &self,
+        epochs: u32,
+        replicates: u32,
+        terrains: usize,
+        rungs: &[u32],
+    ) -> Option<u64> {
+        let replicates = u64::from(replicates.max(1));
+        if let Search::Random { points } = *self {
+            return Some(
+                u64::from(points) * u64::from(epochs) * replicates * terrains.max(1) as u64,
+            );
+        }
+        let (population, generations) = self.generations()?;
+        let per = match self.halving() {
+            Some((_, reduction)) => halving_cost(population, rungs, reduction),
+            None => u64::from(population) * u64::from(epochs),
+        };
+        Some(u64::from(generations) * per * replicates)
     }
 
     /// Candidates per generation and generations of an evolutionary search (CMA-ES or the
@@ -212,9 +244,12 @@ impl SweepSpec {
             }
             (min_epochs, reduction)
         };
-        if !evolutionary && (s.population.is_some() || s.budget_epochs.is_some()) {
+        if !evolutionary && s.population.is_some() {
+            problems.push("search.population belongs to method = \"cmaes\" or \"genetic\"".into());
+        }
+        if !(evolutionary || method == "random") && s.budget_epochs.is_some() {
             problems.push(
-                "search.population and search.budget_epochs belong to method = \"cmaes\" or \"genetic\""
+                "search.budget_epochs belongs to method = \"cmaes\", \"genetic\" or \"random\""
                     .into(),
             );
         }
@@ -277,6 +312,21 @@ impl SweepSpec {
                     }
                 }
             }
+            "random" => {
+                // Every drawn point trains as the grid would: on every terrain, with every
+                // replicate, to the end.
+                let per_point = grid_epochs / points.max(1) as u64;
+                let budget = s.budget_epochs.unwrap_or(grid_epochs / 3);
+                let drawn = budget / per_point.max(1);
+                if epochs > 0 && (drawn == 0 || drawn > points as u64) {
+                    problems.push(format!(
+                        "search.budget_epochs is {budget}: a random search trains {per_point} epochs per grid point (every terrain and replicate); use {per_point} to {grid_epochs} for 1 to {points} points"
+                    ));
+                }
+                Search::Random {
+                    points: drawn.clamp(1, points.max(1) as u64) as u32,
+                }
+            }
             "asha" => {
                 let (min_epochs, reduction) = halving(problems);
                 Search::Asha {
@@ -286,7 +336,7 @@ impl SweepSpec {
             }
             other => {
                 problems.push(format!(
-                    "search.method {other:?} is unknown: use \"grid\", \"asha\", \"cmaes\" or \"genetic\""
+                    "search.method {other:?} is unknown: use \"grid\", \"asha\", \"cmaes\", \"genetic\" or \"random\""
                 ));
                 Search::Grid
             }

@@ -585,15 +585,16 @@ impl ResolvedSpec {
         }
     }
 
-    /// The epochs an evolutionary search is budgeted at: its generations times what one
-    /// costs (with successive halving inside a generation, its synchronous cost).
+    /// The epochs a search with a fixed budget is given ([`Search::budget_epochs`]): an
+    /// evolutionary search's generations times what one costs (with successive halving
+    /// inside a generation, its synchronous cost), a random search's points.
     pub fn budget_epochs(&self) -> Option<u64> {
-        let (population, generations) = self.search.generations()?;
-        let per = match self.search.halving() {
-            Some((_, reduction)) => halving_cost(population, &self.rungs(), reduction),
-            None => u64::from(population) * u64::from(self.epochs),
-        };
-        Some(u64::from(generations) * per * u64::from(self.replicates.max(1)))
+        self.search.budget_epochs(
+            self.epochs,
+            self.replicates,
+            self.terrains.len(),
+            &self.rungs(),
+        )
     }
 
     /// Successive halving's reduction factor, if this spec halves (ASHA, or an

@@ -177,7 +177,7 @@ fn cmaes_searches_inside_the_axes_with_a_budget_of_generations() {
     .to_string();
     assert!(two.contains("searches one terrain"), "{two}");
     assert!(err("[search]\nmethod = \"asha\"\npopulation = 6\n")
-        .contains("belong to method = \"cmaes\""));
+        .contains("belongs to method = \"cmaes\""));
     assert!(err("[search]\nmethod = \"grid\"\nmin_epochs = 6\n")
         .contains("belong to method = \"asha\", \"cmaes\" or \"genetic\""));
 }
@@ -545,4 +545,40 @@ fn replicates_multiply_the_cells_and_keep_replicate_zero_seeds() {
     json.as_object_mut().unwrap().remove("replicates");
     let old: ResolvedSpec = serde_json::from_value(json).unwrap();
     assert_eq!(old.replicates, 1);
+}
+
+#[test]
+fn random_search_draws_a_budgets_worth_of_grid_points() {
+    // The preset's Table-1 grid: 4 x 7 points x 3000 epochs.
+    let base = "robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\n";
+    let parse = |extra: &str| {
+        SweepSpec::from_toml(&format!("{base}{extra}"))
+            .unwrap()
+            .resolve_with(ok)
+    };
+    // Default budget: a third of the grid's epochs, 9 of its 28 points.
+    let d = parse("[search]\nmethod = \"random\"\n").unwrap();
+    assert_eq!(d.search, Search::Random { points: 9 });
+    assert_eq!(d.budget_epochs(), Some(9 * 3000));
+    let r = parse("[search]\nmethod = \"random\"\nbudget_epochs = 14999\n").unwrap();
+    assert_eq!(r.search, Search::Random { points: 4 });
+    // The wire form round-trips, and resolves to itself without the robot's preset.
+    let wire = crate::pb::SweepSpec::from(&r);
+    assert_eq!(wire.search_method, "random");
+    let back = crate::convert::resolved_from_wire(wire).unwrap();
+    assert_eq!(back.search, r.search);
+    assert_eq!(back, r);
+    // A budget outside 1 to 28 points, and settings of other methods, are named.
+    let err = |extra: &str| parse(extra).unwrap_err().to_string();
+    assert!(err("[search]\nmethod = \"random\"\nbudget_epochs = 2999\n")
+        .contains("use 3000 to 84000 for 1 to 28 points"));
+    assert!(
+        err("[search]\nmethod = \"random\"\nbudget_epochs = 90000\n")
+            .contains("search.budget_epochs is 90000")
+    );
+    assert!(err("[search]\nmethod = \"random\"\npopulation = 4\n")
+        .contains("search.population belongs to method"));
+    assert!(err("[search]\nmethod = \"random\"\nreduction = 3\n").contains("belong to method"));
+    assert!(err("[search]\nmethod = \"grid\"\nbudget_epochs = 3000\n")
+        .contains("search.budget_epochs belongs to method"));
 }

@@ -430,6 +430,88 @@ async fn genetic_breeds_grid_points_generation_after_generation_across_a_restart
     assert!(out.join("candidates_flat.png").exists());
 }
 
+/// Issue 41 item 4 on real processes: a random search trains the grid points its seed
+/// draws (the draw search-bench replays), and nothing else, to the end; the best of them
+/// is promoted; `show` and the report lay it out as a grid with the undrawn points empty.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn random_search_trains_the_points_its_seed_draws_and_promotes_the_best() {
+    let _g = heavy();
+    let tmp = tempfile::tempdir().unwrap();
+    let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
+    let mut c = coord.sweeps().await;
+    // 3 x 2 points of 2 epochs: a budget of 4 epochs draws 2 points.
+    let spec = "name = \"random\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\n\
+                w1 = { values = [2.0, 5.0, 8.0] }\nw2 = { values = [-6.0, -4.0] }\n\
+                agents_per_cell = 4\nepochs = 2\ncheckpoint_every = 1\nseed = 11\n\
+                eval = { robots = 2, seconds = 1.0 }\n\
+                [search]\nmethod = \"random\"\nbudget_epochs = 4\n";
+    let sweep = create(&mut c, spec.to_string()).await;
+    assert_eq!(sweep.cells_total, 2);
+    let w = start_worker(tmp.path(), &coord.url(), "a");
+    let done = wait_done(&coord, sweep.sweep_id, SWEEP_TIMEOUT, &[&coord.proc, &w]).await;
+    assert_eq!(
+        (done.state, done.cells_done),
+        (pb::SweepState::Done as i32, 2)
+    );
+
+    let db = coord.db().await;
+    let cells: Vec<(i64, i64, i64, i64, f64)> = sqlx::query_as(
+        "SELECT c.id, c.w1_index, c.w2_index, c.epochs_done, s.score FROM cells c \
+         JOIN scores s ON s.cell_id = c.id ORDER BY c.w1_index, c.w2_index",
+    )
+    .fetch_all(&db)
+    .await
+    .unwrap();
+    let mut drawn = gaitsweep_search::random::random_points(3, 2, 2, 11);
+    drawn.sort_unstable();
+    let points: Vec<(usize, usize)> = cells.iter().map(|c| (c.1 as usize, c.2 as usize)).collect();
+    assert_eq!(points, drawn, "the seed's draw, each point once");
+    assert!(
+        cells.iter().all(|c| c.3 == 2),
+        "trained to the end: {cells:?}"
+    );
+    let best = cells
+        .iter()
+        .fold(None::<(i64, f64)>, |b, c| match b {
+            Some((_, s)) if s >= c.4 => b,
+            _ => Some((c.0, c.4)),
+        })
+        .unwrap()
+        .0;
+    assert_eq!(promoted_cell(&db, sweep.sweep_id).await, best);
+
+    let text = show(&coord, sweep.sweep_id);
+    assert!(
+        text.contains("w1 \\ w2") && !text.contains("evolutionary search"),
+        "a grid: {text}"
+    );
+    let out = tmp.path().join("report");
+    let run = std::process::Command::new(bin("coordinator"))
+        .args([
+            "report",
+            &sweep.sweep_id.to_string(),
+            "--no-gif",
+            "--data-dir",
+        ])
+        .arg(&coord.data)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "coordinator report: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    assert!(
+        html.contains("random search: 2 of the grid's 6 points drawn at random"),
+        "report: {}",
+        tail(&html, 2000)
+    );
+    assert!(out.join("score_flat.png").exists());
+}
+
 /// Item 5 of the search issue on real processes: a full grid recorded with `eval.every`
 /// exports as a search-bench recording, and the bench replays it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

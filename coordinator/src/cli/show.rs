@@ -77,9 +77,18 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         .iter()
         .find(|c| c.cell_id == s.best_cell_id)
         .map(|b| (b.terrain_index, b.w1_index, b.w2_index));
-    let evolutionary = matches!(spec.search_method.as_str(), "cmaes" | "genetic");
+    // The search lays the sweep out and names itself; a spec this client cannot resolve
+    // (a newer coordinator's) is shown as a grid under its method's name.
+    let search = gaitsweep_core::convert::resolved_from_wire(spec.clone())
+        .map(|r| gaitsweep_search::describe(&r));
+    let title = search
+        .as_ref()
+        .map_or(spec.search_method.as_str(), |d| d.title);
+    let evolutionary = search
+        .as_ref()
+        .is_ok_and(|d| d.layout == gaitsweep_search::Layout::Candidates);
     if evolutionary {
-        render_candidates(&mut o, &spec.search_method, cells, replicates, best_point);
+        render_candidates(&mut o, title, cells, replicates, best_point);
     }
     for (ti, terrain) in spec.terrains.iter().enumerate().filter(|_| !evolutionary) {
         let point = |i: usize, j: usize| -> Vec<&pb::Cell> {
@@ -283,7 +292,7 @@ pub(crate) fn point_text(here: &[&pb::Cell], replicates: u32, mark: &str) -> Str
 /// (mean ± 95% CI over replicates) / fall rate or the state; `*` marks the promoted one.
 pub(crate) fn render_candidates(
     o: &mut String,
-    method: &str,
+    title: &str,
     cells: &[pb::Cell],
     replicates: u32,
     best: Option<(u32, u32, u32)>,
@@ -294,12 +303,7 @@ pub(crate) fn render_candidates(
     points.dedup();
     let _ = writeln!(
         o,
-        "\nevolutionary search ({}): {} candidates in {} generations; score{} / fall rate of its evaluation",
-        if method == "genetic" {
-            "genetic algorithm"
-        } else {
-            "cma-es"
-        },
+        "\nevolutionary search ({title}): {} candidates in {} generations; score{} / fall rate of its evaluation",
         points.len(),
         points.last().map_or(0, |p| p.0 + 1),
         if replicates > 1 { " (mean ± 95% CI)" } else { "" }

@@ -78,13 +78,13 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
             let running = s.state == gaitsweep_core::SweepState::Running;
             let secs = (now - s.created_unix_ms).max(1) as f64 / 1000.0;
             let rate = (running && epochs_done > 0).then(|| epochs_done as f64 / secs);
-            let search = s.spec.search.method();
+            let search = gaitsweep_search::describe(&s.spec);
             SweepSummary {
                 id: s.id.0,
                 name: s.spec.name.clone(),
                 robot: s.spec.robot.clone(),
                 state: s.state.as_str().to_string(),
-                search,
+                search: search.name,
                 created_unix_ms: s.created_unix_ms,
                 cells: BTreeMap::from([
                     ("total", s.cells_total),
@@ -100,7 +100,7 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
                 epochs_per_second: rate,
                 // Successive halving never trains every epoch: no ETA from the grid's total.
                 eta_seconds: rate
-                    .filter(|_| search != "asha")
+                    .filter(|_| search.known_total)
                     .map(|r| (epochs_total - epochs_done).max(0) as f64 / r),
             }
         })
@@ -168,6 +168,9 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
     Ok(Json(json!({
         "id": data.sweep_id,
         "search": data.search,
+        "search_title": data.search_title,
+        // Grid points, or an evolutionary search's candidates (rows generations).
+        "layout": if data.evolution.is_some() { "candidates" } else { "grid" },
         "name": data.name,
         "robot": data.robot,
         "state": data.state,

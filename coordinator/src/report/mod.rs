@@ -25,6 +25,7 @@ use anyhow::Context;
 use gaitsweep_core::records::CellRecord;
 use gaitsweep_core::SweepId;
 use gaitsweep_model::GaitScore;
+use gaitsweep_search::Layout;
 use sqlx::{FromRow, Row};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -120,8 +121,10 @@ pub struct ReportData {
     /// (`([w1_lo, w2_lo], [w1_hi, w2_hi])`): its cells are candidates (`w1_index` =
     /// generation), not grid points, and the report draws them instead of grid pictures.
     pub evolution: Option<([f64; 2], [f64; 2])>,
-    /// The search method as a spec writes it (`grid`, `asha`, `cmaes`, `genetic`).
+    /// The search method as a spec writes it (`grid`, `asha`, `cmaes`, `genetic`, `random`).
     pub search: String,
+    /// The search method in words, for titles ([`gaitsweep_search::Description::title`]).
+    pub search_title: String,
     /// What the sweep was given to spend: robots, epochs, search, seeds, evaluation.
     pub budget: String,
 }
@@ -261,6 +264,7 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> 
         .await
         .with_context(|| format!("no sweep {sweep} in this database"))?;
     let spec = row.spec;
+    let search = gaitsweep_search::describe(&spec);
     let mut data = ReportData {
         sweep_id: sweep,
         name: row.name,
@@ -272,8 +276,9 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> 
         w2_values: spec.w2_values.clone(),
         cells: Vec::new(),
         promotions: Vec::new(),
-        evolution: spec.search.generations().map(|_| spec.bounds()),
-        search: spec.search.method().to_string(),
+        evolution: (search.layout == Layout::Candidates).then(|| spec.bounds()),
+        search: search.name.to_string(),
+        search_title: search.title.to_string(),
         budget: budget_text(&spec),
     };
 

@@ -94,6 +94,7 @@ fn synthetic() -> ReportData {
         promotions: vec![],
         evolution: None,
         search: "grid".into(),
+        search_title: "grid search".into(),
         budget: "64 robots per cell".into(),
     }
 }
@@ -484,6 +485,8 @@ fn an_evolutionary_search_is_drawn_as_its_candidates() {
         c.w2 = -10.0 + (n as f64 * 1.31) % 8.0;
     }
     d.evolution = Some(([2.0, -10.0], [12.0, -2.0]));
+    d.search = "cmaes".into();
+    d.search_title = "CMA-ES".into();
     let dir = tempfile::tempdir().unwrap();
     let files = write_report(&d, dir.path(), &GifStatus::NotMade("x".into()))
         .unwrap()

@@ -3,30 +3,7 @@
 /// The budget a sweep was given, in words: robots and epochs per cell, how the search spends
 /// them, replicates, the evaluation rollout and any PPO overrides.
 pub fn budget_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
-    use gaitsweep_core::Search;
-    let search = match spec.search {
-        Search::Grid => "every cell trains all its epochs".to_string(),
-        Search::Asha { reduction, .. } => format!(
-            "successive halving (ASHA, reduction {reduction}) with rungs at epochs {}",
-            spec.rungs()
-                .iter()
-                .map(u32::to_string)
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-        Search::Cmaes {
-            population,
-            generations,
-            ..
-        } => format!("CMA-ES, {generations} generations of {population} candidates"),
-        Search::Genetic {
-            population,
-            generations,
-            ..
-        } => format!(
-            "a genetic algorithm over the grid's points, up to {generations} generations of {population} candidates"
-        ),
-    };
+    let search = gaitsweep_search::describe(spec).budget;
     let ppo = if spec.ppo_overrides.is_empty() {
         String::new()
     } else {

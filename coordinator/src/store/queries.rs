@@ -3,9 +3,9 @@
 
 use super::rows::spec_of;
 use crate::across::ScoredCell;
-use crate::search_method::CellView;
 use crate::{Error, Result};
 use gaitsweep_core::{CellId, CellState, ResolvedSpec, SweepId};
+use gaitsweep_search::CellView;
 use sqlx::{Any, Executor};
 use std::collections::BTreeMap;
 use std::str::FromStr;
@@ -116,7 +116,7 @@ pub(super) async fn scored_cells<'e>(
 /// Every cell of `sweep` as its search method sees it ([`SearchMethod::react`]), in id
 /// order: indices, state, final score and rung evaluations.
 ///
-/// [`SearchMethod::react`]: crate::search_method::SearchMethod::react
+/// [`SearchMethod::react`]: gaitsweep_search::SearchMethod::react
 pub(super) async fn search_view(tx: &mut super::sql::Tx, sweep: SweepId) -> Result<Vec<CellView>> {
     let rows: Vec<(i64, i64, i64, String, Option<f64>)> = sqlx::query_as(
         "SELECT c.id, c.w1_index, c.w2_index, c.state, s.score FROM cells c \

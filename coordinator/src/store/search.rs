@@ -1,6 +1,6 @@
 //! Search strategies in the store: results at successive-halving rungs and the rung
-//! decisions of [`crate::asha`], and the generations of the evolutionary search
-//! ([`crate::evolution`]), applied inside the transaction that records a result or ends an
+//! decisions of [`gaitsweep_search::asha`], and the generations of the evolutionary search
+//! ([`gaitsweep_search::evolution`]), applied inside the transaction that records a result or ends an
 //! attempt.
 
 use super::promotion::finish_if_done;
@@ -9,17 +9,17 @@ use super::score_sql::ScoreTable;
 use super::sql::Tx;
 use super::tx::{cell_tx, end_winning_attempt, refuse_closed, require_uploaded};
 use super::ResultOutcome;
-use crate::asha::Decision;
-use crate::search_method::{self, Action};
 use crate::{Error, Result};
 use gaitsweep_core::records::RungDecisionRecord;
 use gaitsweep_core::spec::CellPlan;
 use gaitsweep_core::{CellId, CellState, LeaseId, SweepId};
 use gaitsweep_model::GaitScore;
+use gaitsweep_search::asha::Decision;
+use gaitsweep_search::Action;
 use std::collections::BTreeMap;
 
 /// Stores a result at a successive-halving rung (the caller has checked it is not a retry):
-/// the evaluation, the attempt done, the cell paused at its rung, then the decisions that are due (see [`crate::asha`]).
+/// the evaluation, the attempt done, the cell paused at its rung, then the decisions that are due (see [`gaitsweep_search::asha`]).
 #[allow(clippy::too_many_arguments)]
 pub(super) async fn rung_result(
     tx: &mut Tx,
@@ -84,7 +84,7 @@ pub(super) async fn rung_result(
     })
 }
 
-/// Asks the sweep's search method ([`crate::search_method`]) what is due, given its cells,
+/// Asks the sweep's search method ([`gaitsweep_search::method`]) what is due, given its cells,
 /// and applies it: rung decisions recorded (`rung_decisions`), continued cells queued for
 /// their next rung (they resume from their rung checkpoint), stopped cells `stopped`, a new
 /// generation's cells queued (only while the sweep runs). Returns the rung decisions.
@@ -94,7 +94,7 @@ pub(super) async fn apply_search(
     now_ms: i64,
 ) -> Result<Vec<RungDecisionRecord>> {
     let queries::SweepSpecRow { spec, state, .. } = queries::sweep_spec(&mut **tx, sweep).await?;
-    let method = search_method::method_for(&spec);
+    let method = gaitsweep_search::method_for(&spec);
     if !method.reacts() {
         return Ok(vec![]);
     }

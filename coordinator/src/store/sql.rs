@@ -179,7 +179,7 @@ impl Store for SqlStore {
         .fetch_one(&mut *tx)
         .await?;
         // A grid is stored whole; an evolutionary search starts with its first generation.
-        let cells = crate::search_method::method_for(spec)
+        let cells = gaitsweep_search::method_for(spec)
             .initial_cells(spec)
             .map_err(Error::BadRequest)?;
         search::insert_cells(&mut tx, SweepId(id), &cells, spec.rungs()[0]).await?;

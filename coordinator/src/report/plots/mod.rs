@@ -377,14 +377,7 @@ fn draw_evolution(
             .collect();
         let generations = points.last().map_or(0, |p| p.0 + 1);
         let fig = Candidates {
-            title: format!(
-                "Evolutionary search ({}) on {terrain}: {who}",
-                if d.search == "genetic" {
-                    "genetic algorithm"
-                } else {
-                    "CMA-ES"
-                }
-            ),
+            title: format!("Evolutionary search ({}) on {terrain}: {who}", d.search_title),
             subtitle: format!(
                 "{} candidates in {generations} generations, labelled by generation; colour: gait score (mean over replicates); \u{2605} promoted; rings: not scored",
                 candidates.len()

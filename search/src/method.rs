@@ -3,10 +3,12 @@
 //! the next generation); the store loads the snapshot, applies the actions and knows
 //! nothing of the methods. Pure: no database, no clock.
 //!
-//! The grid, successive halving (ASHA) over the grid, and the evolutionary searches (CMA-ES
-//! and the genetic algorithm, each with or without halving inside its generations)
-//! implement it over the pure functions that decide ([`crate::asha`],
-//! [`crate::evolution`]).
+//! The grid, successive halving (ASHA) over the grid, the evolutionary searches (CMA-ES
+//! and the genetic algorithm, each with or without halving inside its generations) and a
+//! plain random search over the grid implement it over the pure functions that decide
+//! ([`crate::asha`], [`crate::evolution`]). Each also describes itself
+//! ([`SearchMethod::describe`]): the CLI, the report and the live page lay a sweep out
+//! and name its search from that, never from the method's name.
 
 use crate::asha::{self, AshaCell, Decision, Standing};
 use crate::evolution::{self, EvolutionParams, NextStep, Optimizer};
@@ -48,10 +50,55 @@ pub enum Action {
     },
 }
 
+/// How a sweep's cells are laid out, for the CLI, the report and the live page.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Layout {
+    /// Grid points: `w1_index` and `w2_index` index the spec's axes (a point may have no
+    /// cell, as in a random search).
+    Grid,
+    /// Candidates: `w1_index` is a generation and `w2_index` a candidate of it, each cell
+    /// at its own (w1, w2) inside the axes' rectangle.
+    Candidates,
+}
+
+impl Layout {
+    /// As the live API writes it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Layout::Grid => "grid",
+            Layout::Candidates => "candidates",
+        }
+    }
+}
+
+/// A search method in words, for the CLI, the report and the live page.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Description {
+    /// Its name as a spec writes it (`grid`, `asha`, `cmaes`, `genetic`, `random`).
+    pub name: &'static str,
+    /// Its name in words, for titles ("grid search", "CMA-ES", ...).
+    pub title: &'static str,
+    /// How its cells are laid out.
+    pub layout: Layout,
+    /// How it spends the sweep's epochs, in words.
+    pub budget: String,
+    /// Whether the epochs it will train are known in advance (every cell it queues trains
+    /// to the end, or a fixed budget), so that progress can be given an ETA; successive
+    /// halving over the grid decides as it goes.
+    pub known_total: bool,
+}
+
+/// The description of the search a spec names ([`method_for`]).
+pub fn describe(spec: &ResolvedSpec) -> Description {
+    method_for(spec).describe(spec)
+}
+
 /// A search method.
 pub trait SearchMethod: Send + Sync {
     /// Its name as specs, the CLI, the report and the live page spell it.
     fn name(&self) -> &'static str;
+    /// Itself in words, with how its cells are laid out.
+    fn describe(&self, spec: &ResolvedSpec) -> Description;
     /// The cells a new sweep starts with.
     fn initial_cells(&self, spec: &ResolvedSpec) -> Result<Vec<CellPlan>, String>;
     /// What is due now, given every cell of the sweep (in id order).
@@ -65,6 +112,9 @@ pub trait SearchMethod: Send + Sync {
 
 /// The method a spec names.
 pub fn method_for(spec: &ResolvedSpec) -> Box<dyn SearchMethod> {
+    if let Search::Random { points } = spec.search {
+        return Box::new(crate::random::Random { points });
+    }
     match evolution_params(spec) {
         Some(params) => Box::new(Evolutionary {
             params,
@@ -99,6 +149,15 @@ impl SearchMethod for Grid {
     fn name(&self) -> &'static str {
         "grid"
     }
+    fn describe(&self, _: &ResolvedSpec) -> Description {
+        Description {
+            name: self.name(),
+            title: "grid search",
+            layout: Layout::Grid,
+            budget: "every cell trains all its epochs".into(),
+            known_total: true,
+        }
+    }
     fn initial_cells(&self, spec: &ResolvedSpec) -> Result<Vec<CellPlan>, String> {
         Ok(spec.cells_in_lease_order())
     }
@@ -117,6 +176,20 @@ impl SearchMethod for Halving {
     fn name(&self) -> &'static str {
         "asha"
     }
+    fn describe(&self, spec: &ResolvedSpec) -> Description {
+        let rungs: Vec<String> = spec.rungs().iter().map(u32::to_string).collect();
+        Description {
+            name: self.name(),
+            title: "successive halving (ASHA)",
+            layout: Layout::Grid,
+            budget: format!(
+                "successive halving (ASHA, reduction {}) with rungs at epochs {}",
+                spec.halving_reduction().unwrap_or_default(),
+                rungs.join(", ")
+            ),
+            known_total: false,
+        }
+    }
     fn initial_cells(&self, spec: &ResolvedSpec) -> Result<Vec<CellPlan>, String> {
         Ok(spec.cells_in_lease_order())
     }
@@ -134,6 +207,26 @@ struct Evolutionary {
 impl SearchMethod for Evolutionary {
     fn name(&self) -> &'static str {
         self.name
+    }
+    fn describe(&self, _: &ResolvedSpec) -> Description {
+        let (population, generations) = (self.params.population, self.params.generations);
+        let (title, budget) = match self.params.optimizer {
+            Optimizer::Cmaes { .. } => (
+                "CMA-ES",
+                format!("CMA-ES, {generations} generations of {population} candidates"),
+            ),
+            Optimizer::Genetic { .. } => (
+                "genetic algorithm",
+                format!("a genetic algorithm over the grid's points, up to {generations} generations of {population} candidates"),
+            ),
+        };
+        Description {
+            name: self.name,
+            title,
+            layout: Layout::Candidates,
+            budget,
+            known_total: true,
+        }
     }
     fn initial_cells(&self, spec: &ResolvedSpec) -> Result<Vec<CellPlan>, String> {
         match evolution::next_step(&self.params, &[])? {
@@ -281,5 +374,5 @@ fn rung_decisions(spec: &ResolvedSpec, cells: &[CellView], per_generation: bool)
 }
 
 #[cfg(test)]
-#[path = "search_method_tests.rs"]
+#[path = "method_tests.rs"]
 mod tests;
