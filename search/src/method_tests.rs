@@ -3,8 +3,9 @@ use gaitsweep_core::spec::PresetGrid;
 use gaitsweep_core::Axis;
 use gaitsweep_core::SweepSpec;
 
-fn spec(extra: &str) -> ResolvedSpec {
-    let grid = PresetGrid {
+/// The paper's ANYmal rectangle at 4 x `w2` points, 8 robots x 90 epochs.
+fn grid(w2: usize) -> PresetGrid {
+    PresetGrid {
         w1: Axis::Range {
             min: 2.0,
             max: 12.0,
@@ -13,16 +14,19 @@ fn spec(extra: &str) -> ResolvedSpec {
         w2: Axis::Range {
             min: -10.0,
             max: -2.0,
-            count: 4,
+            count: w2,
         },
         agents_per_cell: 8,
         epochs: 90,
-    };
+    }
+}
+
+fn spec(extra: &str) -> ResolvedSpec {
     SweepSpec::from_toml(&format!(
         "robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\nseed = 7\n{extra}"
     ))
     .unwrap()
-    .resolve_with(|_| Ok((grid, None)))
+    .resolve_with(|_| Ok((grid(4), None)))
     .unwrap()
 }
 
@@ -173,27 +177,13 @@ fn every_method_describes_its_layout_and_budget() {
 
 #[test]
 fn random_search_trains_its_drawn_points_on_every_terrain_and_seed_and_never_acts() {
-    let grid = PresetGrid {
-        w1: Axis::Range {
-            min: 2.0,
-            max: 12.0,
-            count: 4,
-        },
-        w2: Axis::Range {
-            min: -10.0,
-            max: -2.0,
-            count: 7,
-        },
-        agents_per_cell: 8,
-        epochs: 90,
-    };
     let resolve = |seed: u64| {
         SweepSpec::from_toml(&format!(
             "robot = \"anymal\"\nterrains = [\"rough\", \"stairs\"]\npreset_grid = true\nseeds = 2\nseed = {seed}\n\
              [search]\nmethod = \"random\"\nbudget_epochs = 3600\n"
         ))
         .unwrap()
-        .resolve_with(|_| Ok((grid.clone(), None)))
+        .resolve_with(|_| Ok((grid(7), None)))
         .unwrap()
     };
     let s = resolve(7);

@@ -32,6 +32,23 @@ fn show(coord: &Coord, sweep: i64) -> String {
     text
 }
 
+/// `coordinator report SWEEP --no-gif` into `out`; its index.html. Panics if it fails.
+fn report(coord: &Coord, sweep: i64, out: &std::path::Path) -> String {
+    let run = std::process::Command::new(bin("coordinator"))
+        .args(["report", &sweep.to_string(), "--no-gif", "--data-dir"])
+        .arg(&coord.data)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "coordinator report: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    std::fs::read_to_string(out.join("index.html")).unwrap()
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn asha_continues_the_best_cell_from_its_rung_and_stops_the_rest() {
     let _g = heavy();
@@ -404,24 +421,7 @@ async fn genetic_breeds_grid_points_generation_after_generation_across_a_restart
         "show output: {text}"
     );
     let out = tmp.path().join("report");
-    let run = std::process::Command::new(bin("coordinator"))
-        .args([
-            "report",
-            &sweep.sweep_id.to_string(),
-            "--no-gif",
-            "--data-dir",
-        ])
-        .arg(&coord.data)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "coordinator report: {}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    let html = report(&coord, sweep.sweep_id, &out);
     assert!(
         html.contains("genetic algorithm"),
         "report: {}",
@@ -486,24 +486,7 @@ async fn random_search_trains_the_points_its_seed_draws_and_promotes_the_best() 
         "a grid: {text}"
     );
     let out = tmp.path().join("report");
-    let run = std::process::Command::new(bin("coordinator"))
-        .args([
-            "report",
-            &sweep.sweep_id.to_string(),
-            "--no-gif",
-            "--data-dir",
-        ])
-        .arg(&coord.data)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "coordinator report: {}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    let html = report(&coord, sweep.sweep_id, &out);
     assert!(
         html.contains("random search: 2 of the grid's 6 points drawn at random"),
         "report: {}",
