@@ -16,6 +16,7 @@ pub mod sched;
 pub mod searchbench;
 pub mod serve;
 pub mod service;
+pub mod shape;
 pub mod store;
 pub mod validate;
 pub mod watch;

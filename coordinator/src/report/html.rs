@@ -179,6 +179,9 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
                     scores.iter().filter(|s| s.walks_at_every_level()).count(),
                 );
             }
+            if d.evolution.is_none() {
+                shape_paragraph(&mut o, d, t);
+            }
         }
         fig(
             &mut o,
@@ -338,4 +341,31 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
     o.push_str("</table>\n<p>Every value comes from the coordinator's database (tables cells, scores, level_scores, epoch_metrics, promotions). \
                 Overspeed is the mean of max(0, |v| \u{2212} |v_cmd|): how much faster than commanded the robots ran, which Eq. 4's progress term pays for.</p>\n</body></html>\n");
     o
+}
+
+/// The grid's shape on terrain `t` ([`crate::shape`]), what the paper's findings are
+/// read from: where the peak is, whether the score rises towards it, which w1 rows stand.
+fn shape_paragraph(o: &mut String, d: &ReportData, t: usize) {
+    let score = d.grid_mean(t, |c| c.value());
+    let speed = d.grid_mean(t, |c| c.score.as_ref().map(|s| s.mean_speed));
+    let Some(s) = crate::shape::shape(&score, &speed) else {
+        return;
+    };
+    let standing: Vec<String> = s
+        .standing_rows
+        .iter()
+        .map(|&i| fmt_w(d.w1_values[i]))
+        .collect();
+    let _ = writeln!(
+        o,
+        "<p>Shape of the grid: the best point is w1 {}, w2 {} (mean {:.3}), {}; the score rises towards it on <b>{} of {}</b> steps between neighbouring points; rows of w1 standing still at every w2 (mean speed &lt; {} m/s): {}.</p>",
+        fmt_w(d.w1_values[s.peak.0]),
+        fmt_w(d.w2_values[s.peak.1]),
+        s.peak_mean,
+        if s.interior { "inside the grid" } else { "on the grid's edge" },
+        s.rising,
+        s.steps,
+        crate::shape::STANDING_SPEED,
+        if standing.is_empty() { "none".to_string() } else { standing.join(", ") },
+    );
 }

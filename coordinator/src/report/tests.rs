@@ -44,6 +44,7 @@ fn synthetic() -> ReportData {
                         "done",
                         Some(GaitScore {
                             mean_vel_error: 0.1,
+                            mean_speed: 1.0,
                             ..score(v)
                         }),
                     ),
@@ -227,8 +228,17 @@ fn every_picture_is_a_whole_png_and_svg() {
         // Flat: the w1 = 12 row (4 cells) walks, 11 scored; rough: 3 of that row (one failed).
         "Cells that walk: <b>4</b> of 11 scored",
         "Cells that walk: <b>3</b> of 11 scored",
+        // Flat: the score climbs with w1 to the last row, its peak at w2 -7.33 (a tie with
+        // -4.67, which does not count as rising); w1 7 stands (mean speed 0), w1 2 has an
+        // unscored point, w1 12 walks.
+        "the best point is w1 12, w2 -7.33 (mean 0.188), on the grid's edge; the score rises towards it on <b>12 of 15</b> steps",
+        "(mean speed &lt; 0.2 m/s): 7.</p>",
     ] {
-        assert!(html.contains(needle), "index.html lacks {needle:?}");
+        assert!(
+            html.contains(needle),
+            "index.html lacks {needle:?}: {}",
+            html.lines().filter(|l| l.contains("Shape of the grid")).collect::<Vec<_>>().join("\n")
+        );
     }
     assert_eq!(
         html.matches("<tr").count(),

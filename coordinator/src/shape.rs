@@ -1,0 +1,175 @@
+//! The shape of a terrain's score grid, for holding a sweep against the paper's findings
+//! (issue 39 item 5): where the peak is (in the grid's interior or on its edge), whether
+//! the score rises towards it between neighbouring points, and which rows of w1 stand
+//! still at every w2 (the heavy robot's w1 = 2 row in the paper). Pure: the report gives
+//! it the grid's point means.
+
+/// Below this mean speed (m/s) a grid point counts as standing still: the command
+/// sampler's own dead zone (speeds under 0.2 m/s are commanded as 0).
+pub const STANDING_SPEED: f64 = 0.2;
+
+/// A grid's shape.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shape {
+    /// The best point (w1 index, w2 index) by mean score.
+    pub peak: (usize, usize),
+    /// Its mean score.
+    pub peak_mean: f64,
+    /// Whether it is off the grid's first and last row and column.
+    pub interior: bool,
+    /// Steps between neighbouring scored points (along w1 or w2, on the same side of the
+    /// peak) where the point nearer the peak scores higher.
+    pub rising: usize,
+    /// Such steps compared.
+    pub steps: usize,
+    /// Rows (w1 indices) whose every point is scored and stands still (mean speed under
+    /// [`STANDING_SPEED`]).
+    pub standing_rows: Vec<usize>,
+}
+
+/// The shape of a grid of point means `score[i][j]` (w1 index i, w2 index j) with the
+/// points' mean speeds; `None` when no point is scored.
+pub fn shape(score: &[Vec<Option<f64>>], speed: &[Vec<Option<f64>>]) -> Option<Shape> {
+    let mut peak: Option<((usize, usize), f64)> = None;
+    for (i, row) in score.iter().enumerate() {
+        for (j, v) in row.iter().enumerate() {
+            if let Some(v) = v.filter(|v| v.is_finite()) {
+                if peak.is_none_or(|(_, b)| v > b) {
+                    peak = Some(((i, j), v));
+                }
+            }
+        }
+    }
+    let ((pi, pj), peak_mean) = peak?;
+    let rows = score.len();
+    let cols = score.iter().map(Vec::len).max().unwrap_or(0);
+    let at = |i: usize, j: usize| score.get(i).and_then(|r| r.get(j)).copied().flatten();
+    let (mut rising, mut steps) = (0, 0);
+    let mut compare = |near: Option<f64>, far: Option<f64>| {
+        if let (Some(n), Some(f)) = (near, far) {
+            steps += 1;
+            rising += usize::from(n > f);
+        }
+    };
+    for i in 0..rows {
+        for j in 0..cols {
+            // Each point against its neighbour one step nearer the peak, along w1 and w2.
+            if i != pi {
+                let near = if i < pi { i + 1 } else { i - 1 };
+                compare(at(near, j), at(i, j));
+            }
+            if j != pj {
+                let near = if j < pj { j + 1 } else { j - 1 };
+                compare(at(i, near), at(i, j));
+            }
+        }
+    }
+    let standing_rows = (0..rows)
+        .filter(|&i| {
+            let r = speed.get(i).map(Vec::as_slice).unwrap_or(&[]);
+            cols > 0
+                && (0..cols).all(|j| {
+                    r.get(j)
+                        .copied()
+                        .flatten()
+                        .is_some_and(|v| v < STANDING_SPEED)
+                })
+        })
+        .collect();
+    Some(Shape {
+        peak: (pi, pj),
+        peak_mean,
+        interior: pi > 0 && pj > 0 && pi + 1 < rows && pj + 1 < cols,
+        rising,
+        steps,
+        standing_rows,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn grid(
+        f: impl Fn(usize, usize) -> Option<f64>,
+        rows: usize,
+        cols: usize,
+    ) -> Vec<Vec<Option<f64>>> {
+        (0..rows)
+            .map(|i| (0..cols).map(|j| f(i, j)).collect())
+            .collect()
+    }
+
+    #[test]
+    fn an_interior_hill_rises_towards_its_peak_on_every_step() {
+        // The paper's ANYmal picture: one hill inside a 4 x 7 grid.
+        let hill = grid(
+            |i, j| Some(1.0 - (i as f64 - 2.0).powi(2) * 0.1 - (j as f64 - 4.0).powi(2) * 0.05),
+            4,
+            7,
+        );
+        let s = shape(&hill, &grid(|_, _| Some(1.0), 4, 7)).unwrap();
+        assert_eq!((s.peak, s.interior), ((2, 4), true));
+        assert_eq!(s.rising, s.steps);
+        // Every point but the peak's row and column has one step each way; 4 x 7 has
+        // 3 x 7 steps along w1 and 4 x 6 along w2, all towards the peak.
+        assert_eq!(s.steps, 3 * 7 + 4 * 6);
+        assert!(s.standing_rows.is_empty());
+    }
+
+    #[test]
+    fn a_cliff_peaks_on_the_edge_and_its_low_row_stands() {
+        // The paper's heavy robot: w1 = 2 stands in every column, the score climbs to the
+        // grid's edge.
+        let cliff = grid(
+            |i, j| {
+                Some(if i == 0 {
+                    -0.3
+                } else {
+                    0.2 * i as f64 + 0.01 * j as f64
+                })
+            },
+            4,
+            4,
+        );
+        let speed = grid(|i, _| Some(if i == 0 { 0.05 } else { 0.9 }), 4, 4);
+        let s = shape(&cliff, &speed).unwrap();
+        assert_eq!((s.peak, s.interior), ((3, 3), false));
+        assert_eq!(s.standing_rows, vec![0]);
+        // The standing row is flat along w2: its 3 steps are ties, which do not rise.
+        assert_eq!((s.rising, s.steps), (21, 24));
+        // A row with an unscored point is not called standing.
+        let mut partial = speed.clone();
+        partial[0][2] = None;
+        assert!(shape(&cliff, &partial).unwrap().standing_rows.is_empty());
+    }
+
+    #[test]
+    fn missing_points_are_skipped_and_an_empty_grid_has_no_shape() {
+        assert_eq!(shape(&grid(|_, _| None, 2, 2), &[]), None);
+        let holes = grid(|i, j| ((i + j) % 2 == 0).then_some((i + j) as f64), 3, 3);
+        let s = shape(&holes, &[]).unwrap();
+        assert_eq!(s.peak, (2, 2));
+        // No two neighbours are both scored on a checkerboard.
+        assert_eq!(s.steps, 0);
+    }
+
+    proptest! {
+        #[test]
+        fn the_peak_is_the_best_point_and_rising_never_exceeds_steps(
+            v in proptest::collection::vec(proptest::option::of(-1.0f64..1.0), 12),
+        ) {
+            let g = grid(|i, j| v[i * 4 + j], 3, 4);
+            match shape(&g, &[]) {
+                None => prop_assert!(v.iter().all(Option::is_none)),
+                Some(s) => {
+                    let best = v.iter().flatten().cloned().fold(f64::MIN, f64::max);
+                    prop_assert_eq!(s.peak_mean, best);
+                    prop_assert_eq!(g[s.peak.0][s.peak.1], Some(best));
+                    prop_assert!(s.rising <= s.steps);
+                }
+            }
+        }
+    }
+}
