@@ -170,7 +170,12 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
         "search": data.search,
         "search_title": data.search_title,
         // Grid points, or an evolutionary search's candidates (rows generations).
-        "layout": if data.evolution.is_some() { "candidates" } else { "grid" },
+        "layout": if data.evolution.is_some() {
+            gaitsweep_search::Layout::Candidates
+        } else {
+            gaitsweep_search::Layout::Grid
+        }
+        .as_str(),
         "name": data.name,
         "robot": data.robot,
         "state": data.state,
