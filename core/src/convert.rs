@@ -59,20 +59,7 @@ impl From<pb::SweepSpec> for SweepSpec {
                 levels: (!s.eval_levels.is_empty()).then_some(s.eval_levels),
                 score: (!s.score.is_empty()).then_some(s.score),
             },
-            search: (!s.search_method.is_empty()
-                || s.search_min_epochs != 0
-                || s.search_reduction != 0
-                || s.search_population != 0
-                || s.search_sigma != 0.0
-                || s.search_budget_epochs != 0)
-                .then(|| SearchSpec {
-                    method: s.search_method,
-                    min_epochs: nonzero(s.search_min_epochs),
-                    reduction: nonzero(s.search_reduction),
-                    population: nonzero(s.search_population),
-                    sigma: (s.search_sigma != 0.0).then_some(s.search_sigma),
-                    budget_epochs: (s.search_budget_epochs != 0).then_some(s.search_budget_epochs),
-                }),
+            search: s.search.and_then(search_from_wire),
             finalists: (s.finalists_top != 0 || s.finalists_seeds != 0).then_some(
                 crate::finalists::FinalistsSpec {
                     top: s.finalists_top,
@@ -127,20 +114,97 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
             eval_seconds: s.eval.seconds,
             seeds: s.replicates,
             eval_every: s.eval.every,
-            search_method: s.search.method().into(),
-            search_min_epochs: s.search.halving().map_or(0, |h| h.0),
-            search_reduction: s.search.halving().map_or(0, |h| h.1),
-            search_population: s.search.generations().map_or(0, |g| g.0),
-            search_sigma: match s.search {
-                Search::Cmaes { sigma, .. } => sigma,
-                _ => 0.0,
-            },
-            search_budget_epochs: s.budget_epochs().unwrap_or(0),
             eval_levels: s.eval.levels.iter().map(|l| u32::from(*l)).collect(),
             score: s.eval.score.to_string(),
             finalists_top: s.finalists.map_or(0, |f| f.top),
             finalists_seeds: s.finalists.map_or(0, |f| f.seeds),
+            search: Some(search_to_wire(&s.search, s.budget_epochs())),
         }
+    }
+}
+
+/// The name of a wire spec's search method, as a spec writes it ("grid" when unset).
+pub fn search_method(spec: &pb::SweepSpec) -> &'static str {
+    use pb::search::Method;
+    match spec.search.as_ref().and_then(|s| s.method.as_ref()) {
+        None | Some(Method::Grid(_)) => "grid",
+        Some(Method::Asha(_)) => "asha",
+        Some(Method::Cmaes(_)) => "cmaes",
+        Some(Method::Genetic(_)) => "genetic",
+        Some(Method::Random(_)) => "random",
+    }
+}
+
+/// A user's `[search]` as the wire's `oneof`: each method's own options (an unset one 0);
+/// `None` for a message without a method.
+fn search_from_wire(s: pb::Search) -> Option<SearchSpec> {
+    use pb::search::Method;
+    let nonzero = |v: u32| (v != 0).then_some(v);
+    let budget = |v: u64| (v != 0).then_some(v);
+    let spec = |method: &str| SearchSpec {
+        method: method.into(),
+        ..SearchSpec::default()
+    };
+    Some(match s.method? {
+        Method::Grid(_) => spec("grid"),
+        Method::Asha(a) => SearchSpec {
+            min_epochs: nonzero(a.min_epochs),
+            reduction: nonzero(a.reduction),
+            ..spec("asha")
+        },
+        Method::Cmaes(c) => SearchSpec {
+            population: nonzero(c.population),
+            sigma: (c.sigma != 0.0).then_some(c.sigma),
+            budget_epochs: budget(c.budget_epochs),
+            min_epochs: nonzero(c.min_epochs),
+            reduction: nonzero(c.reduction),
+            ..spec("cmaes")
+        },
+        Method::Genetic(g) => SearchSpec {
+            population: nonzero(g.population),
+            budget_epochs: budget(g.budget_epochs),
+            min_epochs: nonzero(g.min_epochs),
+            reduction: nonzero(g.reduction),
+            ..spec("genetic")
+        },
+        Method::Random(r) => SearchSpec {
+            budget_epochs: budget(r.budget_epochs),
+            ..spec("random")
+        },
+    })
+}
+
+/// A resolved search as the wire's `oneof`, every option concrete (`budget_epochs`: what
+/// the spec trains in all, for the methods with a fixed budget).
+fn search_to_wire(s: &Search, budget_epochs: Option<u64>) -> pb::Search {
+    use pb::search::Method;
+    let budget_epochs = budget_epochs.unwrap_or(0);
+    let (min_epochs, reduction) = s.halving().unwrap_or((0, 0));
+    let method = match *s {
+        Search::Grid => Method::Grid(pb::GridSearch {}),
+        Search::Asha { .. } => Method::Asha(pb::AshaSearch {
+            min_epochs,
+            reduction,
+        }),
+        Search::Cmaes {
+            population, sigma, ..
+        } => Method::Cmaes(pb::CmaesSearch {
+            population,
+            sigma,
+            budget_epochs,
+            min_epochs,
+            reduction,
+        }),
+        Search::Genetic { population, .. } => Method::Genetic(pb::GeneticSearch {
+            population,
+            budget_epochs,
+            min_epochs,
+            reduction,
+        }),
+        Search::Random { .. } => Method::Random(pb::RandomSearch { budget_epochs }),
+    };
+    pb::Search {
+        method: Some(method),
     }
 }
 

@@ -564,7 +564,13 @@ fn random_search_draws_a_budgets_worth_of_grid_points() {
     assert_eq!(r.search, Search::Random { points: 4 });
     // The wire form round-trips, and resolves to itself without the robot's preset.
     let wire = crate::pb::SweepSpec::from(&r);
-    assert_eq!(wire.search_method, "random");
+    assert!(matches!(
+        wire.search.as_ref().and_then(|s| s.method.as_ref()),
+        Some(crate::pb::search::Method::Random(crate::pb::RandomSearch {
+            budget_epochs: 12000
+        }))
+    ));
+    assert_eq!(crate::convert::search_method(&wire), "random");
     let back = crate::convert::resolved_from_wire(wire).unwrap();
     assert_eq!(back.search, r.search);
     assert_eq!(back, r);
@@ -581,4 +587,34 @@ fn random_search_draws_a_budgets_worth_of_grid_points() {
     assert!(err("[search]\nmethod = \"random\"\nreduction = 3\n").contains("belong to method"));
     assert!(err("[search]\nmethod = \"grid\"\nbudget_epochs = 3000\n")
         .contains("search.budget_epochs belongs to method"));
+}
+
+#[test]
+fn every_search_method_crosses_the_wire_as_its_own_variant_and_comes_back() {
+    let base = "robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\n";
+    for (search, method) in [
+        ("", "grid"),
+        ("[search]\nmethod = \"asha\"\nmin_epochs = 100\nreduction = 4\n", "asha"),
+        ("[search]\nmethod = \"cmaes\"\npopulation = 4\nsigma = 0.2\nbudget_epochs = 24000\n", "cmaes"),
+        ("[search]\nmethod = \"cmaes\"\nbudget_epochs = 36000\nmin_epochs = 300\nreduction = 3\n", "cmaes"),
+        ("[search]\nmethod = \"genetic\"\npopulation = 4\nbudget_epochs = 24000\n", "genetic"),
+        ("[search]\nmethod = \"random\"\nbudget_epochs = 9000\n", "random"),
+    ] {
+        let r = SweepSpec::from_toml(&format!("{base}{search}"))
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap();
+        assert_eq!(r.search.method(), method);
+        let wire = crate::pb::SweepSpec::from(&r);
+        assert_eq!(crate::convert::search_method(&wire), method, "{search}");
+        // The structured form a gRPC client sends resolves like the TOML it came from.
+        let back = crate::convert::resolved_from_wire(wire).unwrap();
+        assert_eq!(back.search, r.search, "{search}");
+    }
+    // A structured spec without a search is a grid.
+    let mut wire = crate::pb::SweepSpec::from(
+        &SweepSpec::from_toml(base).unwrap().resolve_with(ok).unwrap(),
+    );
+    wire.search = None;
+    assert_eq!(crate::convert::resolved_from_wire(wire).unwrap().search, Search::Grid);
 }

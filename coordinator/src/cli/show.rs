@@ -83,7 +83,7 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         .map(|r| gaitsweep_search::describe(&r));
     let title = search
         .as_ref()
-        .map_or(spec.search_method.as_str(), |d| d.title);
+        .map_or(gaitsweep_core::convert::search_method(&spec), |d| d.title);
     let evolutionary = search
         .as_ref()
         .is_ok_and(|d| d.layout == gaitsweep_search::Layout::Candidates);
