@@ -6,7 +6,7 @@
 //! show`, the report and the live page all apply the one rule.
 
 use gaitsweep_core::stats::Summary;
-use gaitsweep_core::CellId;
+use gaitsweep_core::{CellId, Place};
 use std::collections::BTreeMap;
 
 /// The rule in words, for the CLI, the report and the page.
@@ -23,26 +23,10 @@ pub struct ScoredCell {
     pub cell: CellId,
     /// Index of its terrain.
     pub terrain: usize,
-    /// Grid row.
-    pub w1_index: u32,
-    /// Grid column.
-    pub w2_index: u32,
+    /// Its grid point (an evolutionary candidate is never promoted across terrains).
+    pub place: Place,
     /// Its final score.
     pub score: f64,
-}
-
-impl ScoredCell {
-    /// A cell from the columns `cells.id, cells.terrain_index, cells.w1_index,
-    /// cells.w2_index, scores.score` (the store's promotion and the tests read them so).
-    pub fn from_row((id, terrain, w1_index, w2_index, score): (i64, i64, i64, i64, f64)) -> Self {
-        ScoredCell {
-            cell: CellId(id),
-            terrain: terrain.max(0) as usize,
-            w1_index: w1_index.max(0) as u32,
-            w2_index: w2_index.max(0) as u32,
-            score,
-        }
-    }
 }
 
 /// The point promoted across terrains.
@@ -78,8 +62,11 @@ pub fn best_across(cells: &[ScoredCell], terrains: usize) -> Option<AcrossTerrai
         .iter()
         .filter(|c| c.score.is_finite() && c.terrain < terrains)
     {
+        let Some(point) = c.place.grid() else {
+            continue;
+        };
         points
-            .entry((c.w1_index, c.w2_index))
+            .entry(point)
             .or_default()
             .entry(c.terrain)
             .or_default()
@@ -153,8 +140,7 @@ mod tests {
         ScoredCell {
             cell: CellId(id),
             terrain,
-            w1_index: i,
-            w2_index: j,
+            place: Place::point(i, j),
             score,
         }
     }
@@ -216,7 +202,7 @@ mod tests {
             prop_assert!(a.relative.iter().all(|r| *r <= 1.0 + 1e-12));
             for p in 0..6u32 {
                 let (i, j) = (p % 3, p / 3);
-                let on = |t: usize| cells.iter().find(|c| c.terrain == t && c.w1_index == i && c.w2_index == j).unwrap().score;
+                let on = |t: usize| cells.iter().find(|c| c.terrain == t && c.place == Place::point(i, j)).unwrap().score;
                 let best = |t: usize| cells.iter().filter(|c| c.terrain == t).map(|c| c.score).fold(0.0, f64::max);
                 let v = (on(0) / best(0)).min(on(1) / best(1));
                 prop_assert!(v <= a.value + 1e-12);

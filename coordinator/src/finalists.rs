@@ -14,7 +14,8 @@ use crate::across::ScoredCell;
 pub const RULE: &str = "the top points of each terrain by their single-seed score get more seeds; the finalist with the highest mean over its seeds is promoted";
 
 fn point(c: &ScoredCell) -> Point {
-    (c.terrain, c.w1_index as usize, c.w2_index as usize)
+    let (i, j) = c.place.pair();
+    (c.terrain, i as usize, j as usize)
 }
 
 /// The `top` best points of each terrain by score (finite scores only), best first; ties
@@ -107,8 +108,7 @@ mod tests {
         ScoredCell {
             cell: CellId(id),
             terrain: t,
-            w1_index: i,
-            w2_index: j,
+            place: gaitsweep_core::Place::point(i, j),
             score,
         }
     }

@@ -5,7 +5,7 @@ use crate::records::{
     CellRecord, CheckpointRecord, PromotionRecord, RungDecisionRecord, SweepRecord,
 };
 use crate::spec::{Axis, EvalSpec, ResolvedSpec, Search, SearchSpec, SweepSpec};
-use crate::{CellState, Error, Result, SweepState};
+use crate::{CellState, Error, Place, Result, SweepState};
 use gaitsweep_model::{EvalSettings, GaitScore, LevelScore, TerrainKind};
 
 impl From<&Axis> for pb::Axis {
@@ -378,8 +378,9 @@ impl From<&CellRecord> for pb::Cell {
             sweep_id: c.sweep_id.0,
             terrain_index: c.terrain_index,
             terrain: c.terrain.clone(),
-            w1_index: c.w1_index,
-            w2_index: c.w2_index,
+            w1_index: c.place.grid().map_or(0, |p| p.0),
+            w2_index: c.place.grid().map_or(0, |p| p.1),
+            candidate: place_to_wire(c.place),
             w1: c.w1,
             w2: c.w2,
             state: pb::CellState::from(c.state) as i32,
@@ -452,14 +453,28 @@ impl From<&RungDecisionRecord> for pb::RungDecision {
     }
 }
 
+/// A candidate's place on the wire (`None` for a grid point).
+fn place_to_wire(p: Place) -> Option<pb::CandidatePlace> {
+    p.generation()
+        .map(|(generation, number)| pb::CandidatePlace { generation, number })
+}
+
+/// Where a wire cell stands: its candidate place if set, else its grid point.
+pub fn place_of(c: &pb::Cell) -> Place {
+    match &c.candidate {
+        Some(k) => Place::candidate(k.generation, k.number),
+        None => Place::point(c.w1_index, c.w2_index),
+    }
+}
+
 /// The cells' grid points (terrain, w1, w2 index) summarised over their replicates, in
 /// order of first appearance: mean, sd and 95% CI of the score and of every component.
 pub fn point_results(cells: &[pb::Cell]) -> Vec<pb::PointResult> {
-    let mut order: Vec<(u32, u32, u32)> = Vec::new();
-    let mut groups: std::collections::BTreeMap<(u32, u32, u32), Vec<&pb::Cell>> =
+    let mut order: Vec<(u32, Place)> = Vec::new();
+    let mut groups: std::collections::BTreeMap<(u32, Place), Vec<&pb::Cell>> =
         std::collections::BTreeMap::new();
     for c in cells {
-        let key = (c.terrain_index, c.w1_index, c.w2_index);
+        let key = (c.terrain_index, place_of(c));
         if !groups.contains_key(&key) {
             order.push(key);
         }
@@ -482,8 +497,9 @@ pub fn point_results(cells: &[pb::Cell]) -> Vec<pb::PointResult> {
             };
             pb::PointResult {
                 terrain_index: key.0,
-                w1_index: key.1,
-                w2_index: key.2,
+                w1_index: key.1.grid().map_or(0, |p| p.0),
+                w2_index: key.1.grid().map_or(0, |p| p.1),
+                candidate: place_to_wire(key.1),
                 w1: group[0].w1,
                 w2: group[0].w2,
                 replicates: group.len() as u32,
@@ -581,8 +597,7 @@ mod eval_tests {
                 sweep_id: SweepId(1),
                 terrain_index: 0,
                 terrain: terrain.into(),
-                w1_index: 0,
-                w2_index: 0,
+                place: Place::point(0, 0),
                 w1: 1.0,
                 w2: -6.0,
                 seed: 1,

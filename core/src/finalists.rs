@@ -92,8 +92,7 @@ impl ResolvedSpec {
                 out.push(CellPlan {
                     terrain_index: ti,
                     terrain: *terrain,
-                    w1_index: i,
-                    w2_index: j,
+                    place: crate::Place::point(i as u32, j as u32),
                     w1,
                     w2,
                     replicate: r,
@@ -140,8 +139,8 @@ mod tests {
             let twin = replicated
                 .iter()
                 .find(|r| {
-                    (r.terrain_index, r.w1_index, r.w2_index, r.replicate)
-                        == (c.terrain_index, c.w1_index, c.w2_index, c.replicate)
+                    (r.terrain_index, r.place, r.replicate)
+                        == (c.terrain_index, c.place, c.replicate)
                 })
                 .unwrap();
             assert_eq!(c, twin);

@@ -7,6 +7,7 @@ pub mod convert;
 pub mod error;
 pub mod finalists;
 pub mod ids;
+pub mod place;
 pub mod reason;
 pub mod records;
 pub mod search;
@@ -19,6 +20,7 @@ pub use error::{Error, Result};
 /// Every default, decided once (`gaitsweep_model::defaults`).
 pub use gaitsweep_model::defaults;
 pub use ids::{CellId, LeaseId, SweepId, WorkerId};
+pub use place::Place;
 pub use spec::{Axis, CellPlan, ResolvedSpec, Search, SearchSpec, SweepSpec};
 pub use state::{CellState, SweepState};
 

@@ -1,7 +1,7 @@
 //! Domain records the coordinator stores and serves: sweeps, cells, checkpoints,
 //! promotions. Their wire forms are built in [`crate::convert`].
 
-use crate::{CellId, CellState, ResolvedSpec, SweepId, SweepState};
+use crate::{CellId, CellState, Place, ResolvedSpec, SweepId, SweepState};
 use gaitsweep_model::GaitScore;
 
 /// A stored checkpoint: content-addressed file with its epoch.
@@ -26,10 +26,8 @@ pub struct CellRecord {
     pub terrain_index: u32,
     /// Terrain name.
     pub terrain: String,
-    /// Row.
-    pub w1_index: u32,
-    /// Column.
-    pub w2_index: u32,
+    /// Grid point or evolutionary candidate.
+    pub place: Place,
     /// Velocity tracking weight.
     pub w1: f64,
     /// Torque penalty exponent.

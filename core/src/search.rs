@@ -50,8 +50,7 @@ pub enum Search {
         reduction: u32,
     },
     /// CMA-ES over continuous (w1, w2) inside the ranges of the spec's axes (one terrain):
-    /// each generation's candidates are cells (`w1_index` = generation, `w2_index` =
-    /// candidate), trained to `epochs` with the spec's replicates; the next generation is
+    /// each generation's candidates are cells ([`crate::Place::Candidate`]), trained to `epochs` with the spec's replicates; the next generation is
     /// asked for once every cell of the last one has ended.
     Cmaes {
         /// Candidates per generation (lambda, >= 2).
@@ -70,7 +69,7 @@ pub enum Search {
     },
     /// A genetic algorithm over the grid's points (one terrain), the paper's proposal for a
     /// cheaper search: candidates are grid points never trained before, bred from the best
-    /// points so far; cells as for CMA-ES (`w1_index` = generation, `w2_index` = candidate).
+    /// points so far; cells as for CMA-ES.
     Genetic {
         /// Candidates per generation (>= 2, at most the grid's points).
         population: u32,

@@ -178,10 +178,8 @@ pub struct CellPlan {
     pub terrain_index: usize,
     /// Terrain.
     pub terrain: TerrainKind,
-    /// Row (w1 index).
-    pub w1_index: usize,
-    /// Column (w2 index).
-    pub w2_index: usize,
+    /// Grid point or evolutionary candidate.
+    pub place: crate::Place,
     /// Velocity tracking weight.
     pub w1: f64,
     /// Torque penalty exponent.
@@ -544,8 +542,7 @@ impl ResolvedSpec {
                         out.push(CellPlan {
                             terrain_index: ti,
                             terrain: *terrain,
-                            w1_index: i,
-                            w2_index: j,
+                            place: crate::Place::point(i as u32, j as u32),
                             w1,
                             w2,
                             replicate: r,
@@ -611,7 +608,7 @@ impl ResolvedSpec {
     }
 
     /// The cells of one generation of an evolutionary search: candidate `k` at `(w1, w2)`
-    /// becomes `w1_index = generation`, `w2_index = k`, on the first terrain, once per
+    /// becomes candidate `k` of `generation`, on the first terrain, once per
     /// replicate, each with its own seed.
     pub fn candidate_cells(&self, generation: u32, candidates: &[[f64; 2]]) -> Vec<CellPlan> {
         let terrain = self.terrains.first().copied().unwrap_or(TerrainKind::Flat);
@@ -622,8 +619,7 @@ impl ResolvedSpec {
                 out.push(CellPlan {
                     terrain_index: 0,
                     terrain,
-                    w1_index: generation as usize,
-                    w2_index: k,
+                    place: crate::Place::candidate(generation, k as u32),
                     w1: c[0],
                     w2: c[1],
                     replicate: r,

@@ -120,8 +120,8 @@ fn cmaes_searches_inside_the_axes_with_a_budget_of_generations() {
     let cells = r.candidate_cells(2, &[[3.0, -5.0], [4.0, -6.0]]);
     assert_eq!(cells.len(), 4, "two candidates x two replicates");
     assert_eq!(
-        (cells[3].w1_index, cells[3].w2_index, cells[3].replicate),
-        (2, 1, 1)
+        (cells[3].place, cells[3].replicate),
+        (crate::Place::candidate(2, 1), 1)
     );
     assert_eq!((cells[3].w1, cells[3].w2), (4.0, -6.0));
     let seeds: std::collections::BTreeSet<u64> = cells.iter().map(|c| c.seed).collect();
@@ -468,8 +468,8 @@ proptest::proptest! {
         let r = spec.resolve_with(ok).unwrap();
         let cells = r.cells();
         proptest::prop_assert_eq!(cells.len(), n1 * n2 * nt);
-        let pairs: std::collections::BTreeSet<(usize, usize, usize)> =
-            cells.iter().map(|c| (c.terrain_index, c.w1_index, c.w2_index)).collect();
+        let pairs: std::collections::BTreeSet<(usize, crate::Place)> =
+            cells.iter().map(|c| (c.terrain_index, c.place)).collect();
         proptest::prop_assert_eq!(pairs.len(), cells.len());
         proptest::prop_assert_eq!(cells[0].w1, 0.0);
         proptest::prop_assert_eq!(cells.last().unwrap().w2, if n2 == 1 { -3.0 } else { -1.0 });
@@ -495,11 +495,12 @@ fn successive_halving_leases_its_grid_in_a_seeded_random_order() {
     // The same cells with the same seeds, only in another order, and the same order on
     // every call.
     let mut sorted = lease.clone();
-    sorted.sort_by_key(|c| (c.w1_index, c.w2_index));
+    sorted.sort_by_key(|c| c.place);
     assert_eq!(sorted, grid_order);
     assert_eq!(asha.cells_in_lease_order(), lease);
     // The first four leased are not all of one row.
-    let rows: std::collections::BTreeSet<usize> = lease[..4].iter().map(|c| c.w1_index).collect();
+    let rows: std::collections::BTreeSet<u32> =
+        lease[..4].iter().map(|c| c.place.pair().0).collect();
     assert!(rows.len() > 1, "{rows:?}");
 }
 
@@ -523,7 +524,7 @@ fn replicates_multiply_the_cells_and_keep_replicate_zero_seeds() {
     for p in &a {
         let r0 = b
             .iter()
-            .find(|c| c.w1_index == p.w1_index && c.replicate == 0)
+            .find(|c| c.place == p.place && c.replicate == 0)
             .unwrap();
         assert_eq!(
             r0.seed, p.seed,
@@ -613,8 +614,14 @@ fn every_search_method_crosses_the_wire_as_its_own_variant_and_comes_back() {
     }
     // A structured spec without a search is a grid.
     let mut wire = crate::pb::SweepSpec::from(
-        &SweepSpec::from_toml(base).unwrap().resolve_with(ok).unwrap(),
+        &SweepSpec::from_toml(base)
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap(),
     );
     wire.search = None;
-    assert_eq!(crate::convert::resolved_from_wire(wire).unwrap().search, Search::Grid);
+    assert_eq!(
+        crate::convert::resolved_from_wire(wire).unwrap().search,
+        Search::Grid
+    );
 }

@@ -13,7 +13,7 @@
 use crate::asha::{self, AshaCell, Decision, Standing};
 use crate::evolution::{self, EvolutionParams, NextStep, Optimizer};
 use gaitsweep_core::spec::CellPlan;
-use gaitsweep_core::{CellId, CellState, ResolvedSpec, Search};
+use gaitsweep_core::{CellId, CellState, Place, ResolvedSpec, Search};
 use std::collections::{BTreeMap, BTreeSet};
 
 /// A cell as a search method sees it.
@@ -21,10 +21,8 @@ use std::collections::{BTreeMap, BTreeSet};
 pub struct CellView {
     /// The cell.
     pub id: CellId,
-    /// Grid row; an evolutionary sweep's generation.
-    pub w1_index: u32,
-    /// Grid column; an evolutionary sweep's candidate.
-    pub w2_index: u32,
+    /// Its grid point, or its generation and number as a candidate.
+    pub place: Place,
     /// Its state.
     pub state: CellState,
     /// Its final score, once scored.
@@ -53,11 +51,11 @@ pub enum Action {
 /// How a sweep's cells are laid out, for the CLI, the report and the live page.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Layout {
-    /// Grid points: `w1_index` and `w2_index` index the spec's axes (a point may have no
-    /// cell, as in a random search).
+    /// Grid points ([`Place::Point`]) index the spec's axes (a point may have no cell, as
+    /// in a random search).
     Grid,
-    /// Candidates: `w1_index` is a generation and `w2_index` a candidate of it, each cell
-    /// at its own (w1, w2) inside the axes' rectangle.
+    /// Candidates ([`Place::Candidate`]) by generation, each at its own (w1, w2) inside
+    /// the axes' rectangle.
     Candidates,
 }
 
@@ -279,13 +277,17 @@ impl Evolutionary {
     /// with halving, a candidate stopped at a rung ranks by how far it got, then by its
     /// score there; one with neither (failed for good) ranks below its generation.
     fn history(&self, spec: &ResolvedSpec, cells: &[CellView]) -> Vec<Vec<f64>> {
-        let generations = cells.iter().map(|c| c.w1_index + 1).max().unwrap_or(0) as usize;
+        let places = || {
+            cells
+                .iter()
+                .filter_map(|c| Some((c, c.place.generation()?)))
+        };
+        let generations = places().map(|(_, (g, _))| g + 1).max().unwrap_or(0) as usize;
         let mut sums = vec![vec![(0.0, 0u32); self.params.population]; generations];
-        for c in cells {
+        for (c, (g, k)) in places() {
             if let (Some(s), Some(slot)) = (
                 c.score,
-                sums.get_mut(c.w1_index as usize)
-                    .and_then(|g| g.get_mut(c.w2_index as usize)),
+                sums.get_mut(g as usize).and_then(|g| g.get_mut(k as usize)),
             ) {
                 slot.0 += s;
                 slot.1 += 1;
@@ -295,14 +297,12 @@ impl Evolutionary {
         let halving = spec.halving_reduction().is_some();
         // The deepest rung evaluation of each candidate (the later cell on a tie).
         let mut deepest: BTreeMap<(u32, u32), (u32, CellId, usize, f64)> = BTreeMap::new();
-        for c in cells.iter().filter(|_| halving) {
+        for (c, place) in places().filter(|_| halving) {
             for (&epoch, &score) in &c.rungs {
                 let Some(depth) = rungs.iter().position(|r| *r == epoch) else {
                     continue;
                 };
-                let slot = deepest
-                    .entry((c.w1_index, c.w2_index))
-                    .or_insert((epoch, c.id, depth, score));
+                let slot = deepest.entry(place).or_insert((epoch, c.id, depth, score));
                 if (epoch, c.id) > (slot.0, slot.1) {
                     *slot = (epoch, c.id, depth, score);
                 }
@@ -335,7 +335,7 @@ impl Evolutionary {
 }
 
 /// The successive-halving decisions that are due ([`asha::decide`]). `per_generation`:
-/// an evolutionary search halves inside each generation (`w1_index`), its candidates
+/// an evolutionary search halves inside each generation, its candidates
 /// competing with each other, not with earlier generations, and synchronously (a rung is
 /// decided once none of the generation trains): the next generation waits for the whole
 /// one anyway, and the budget buys generations at synchronous halving's cost, which
@@ -357,7 +357,10 @@ fn rung_decisions(spec: &ResolvedSpec, cells: &[CellView], per_generation: bool)
             _ => Standing::Closed,
         };
         groups
-            .entry(if per_generation { c.w1_index } else { 0 })
+            .entry(match c.place.generation() {
+                Some((g, _)) if per_generation => g,
+                _ => 0,
+            })
             .or_default()
             .push(AshaCell {
                 cell: c.id,

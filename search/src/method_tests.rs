@@ -32,16 +32,14 @@ fn spec(extra: &str) -> ResolvedSpec {
 
 fn view(
     id: i64,
-    g: u32,
-    k: u32,
+    place: gaitsweep_core::Place,
     state: CellState,
     score: Option<f64>,
     rungs: &[(u32, f64)],
 ) -> CellView {
     CellView {
         id: CellId(id),
-        w1_index: g,
-        w2_index: k,
+        place,
         state,
         score,
         rungs: rungs.iter().copied().collect(),
@@ -68,8 +66,7 @@ fn halving_decides_the_paused_cells_at_a_full_rung() {
         .map(|i| {
             view(
                 i + 1,
-                0,
-                i as u32,
+                gaitsweep_core::Place::point(0, i as u32),
                 CellState::Paused,
                 None,
                 &[(10, 0.1 * i as f64)],
@@ -105,7 +102,13 @@ fn an_evolutionary_search_queues_the_next_generation_once_the_last_has_ended() {
                 } else {
                     (CellState::Done, Some(0.1 * k as f64))
                 };
-                view(k as i64 + 1, 0, k as u32, state, score, &[])
+                view(
+                    k as i64 + 1,
+                    gaitsweep_core::Place::candidate(0, k as u32),
+                    state,
+                    score,
+                    &[],
+                )
             })
             .collect()
     };
@@ -120,7 +123,7 @@ fn an_evolutionary_search_queues_the_next_generation_once_the_last_has_ended() {
             target: 90,
         }] => {
             assert_eq!(cells.len(), 4);
-            assert!(cells.iter().all(|c| c.w1_index == 1));
+            assert!(cells.iter().all(|c| c.place.generation().unwrap().0 == 1));
         }
         other => panic!("{other:?}"),
     }
@@ -195,13 +198,13 @@ fn random_search_trains_its_drawn_points_on_every_terrain_and_seed_and_never_act
     assert!(!m.reacts());
     let cells = m.initial_cells(&s).unwrap();
     assert_eq!(cells.len(), 10 * 2 * 2);
-    let points: std::collections::BTreeSet<(usize, usize)> =
-        cells.iter().map(|c| (c.w1_index, c.w2_index)).collect();
+    let points: std::collections::BTreeSet<(u32, u32)> =
+        cells.iter().map(|c| c.place.grid().unwrap()).collect();
     assert_eq!(points.len(), 10);
     for &(i, j) in &points {
         let of_point: Vec<_> = cells
             .iter()
-            .filter(|c| (c.w1_index, c.w2_index) == (i, j))
+            .filter(|c| c.place.grid() == Some((i, j)))
             .map(|c| (c.terrain_index, c.replicate))
             .collect();
         assert_eq!(of_point.len(), 4, "every terrain and seed of ({i}, {j})");
@@ -215,6 +218,7 @@ fn random_search_trains_its_drawn_points_on_every_terrain_and_seed_and_never_act
     assert_eq!(
         crate::random::random_points(4, 7, 10, 7)
             .into_iter()
+            .map(|(i, j)| (i as u32, j as u32))
             .collect::<std::collections::BTreeSet<_>>(),
         points
     );

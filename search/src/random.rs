@@ -6,7 +6,7 @@
 
 use crate::method::{Action, CellView, Description, Layout, SearchMethod};
 use gaitsweep_core::spec::CellPlan;
-use gaitsweep_core::ResolvedSpec;
+use gaitsweep_core::{Place, ResolvedSpec};
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -49,18 +49,19 @@ impl SearchMethod for Random {
         }
     }
     fn initial_cells(&self, spec: &ResolvedSpec) -> Result<Vec<CellPlan>, String> {
-        let drawn: BTreeSet<(usize, usize)> = random_points(
+        let drawn: BTreeSet<Place> = random_points(
             spec.w1_values.len(),
             spec.w2_values.len(),
             self.points as usize,
             spec.seed,
         )
         .into_iter()
+        .map(|(i, j)| Place::point(i as u32, j as u32))
         .collect();
         Ok(spec
             .cells_in_lease_order()
             .into_iter()
-            .filter(|c| drawn.contains(&(c.w1_index, c.w2_index)))
+            .filter(|c| drawn.contains(&c.place))
             .collect())
     }
     fn react(&self, _: &ResolvedSpec, _: &[CellView]) -> Result<Vec<Action>, String> {

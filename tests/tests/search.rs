@@ -264,7 +264,7 @@ async fn run_across_a_restart(spec: &str) -> (tempfile::TempDir, Coord, pb::Swee
     wait_for("generation 1 to be queued", SWEEP_TIMEOUT, || {
         let db = db.clone();
         async move {
-            let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM cells WHERE w1_index = 1")
+            let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM cells WHERE generation = 1")
                 .fetch_one(&db)
                 .await
                 .ok()?;
@@ -305,9 +305,10 @@ async fn cmaes_trains_generation_after_generation_across_a_restart() {
         "60 epochs pay for 3 generations of 2 candidates x 10 epochs"
     );
     let db = coord.db().await;
+    // Candidates are stored by generation and number, never as grid indices.
     let cells: Vec<(i64, i64, i64, f64, f64, f64)> = sqlx::query_as(
-        "SELECT c.id, c.w1_index, c.w2_index, c.w1, c.w2, s.score FROM cells c JOIN scores s ON s.cell_id = c.id \
-         ORDER BY c.w1_index, c.w2_index",
+        "SELECT c.id, c.generation, c.candidate, c.w1, c.w2, s.score FROM cells c JOIN scores s ON s.cell_id = c.id \
+         WHERE c.w1_index IS NULL AND c.w2_index IS NULL ORDER BY c.generation, c.candidate",
     )
     .fetch_all(&db)
     .await
@@ -347,6 +348,17 @@ async fn cmaes_trains_generation_after_generation_across_a_restart() {
 
     let text = show(&coord, sweep.sweep_id);
     assert!(text.contains("generation"), "show output: {text}");
+    // `show` lists the candidates by generation and number and marks the promoted one.
+    let (g, k) = cells
+        .iter()
+        .find(|c| c.0 == best)
+        .map(|c| (c.1, c.2))
+        .unwrap();
+    let row = format!("{g:>10} {k:>9}");
+    assert!(
+        text.lines().any(|l| l.starts_with(&row) && l.contains('*')),
+        "no marked row for generation {g} candidate {k}: {text}"
+    );
 }
 
 /// The genetic algorithm end to end, with successive halving inside each generation: each
@@ -371,7 +383,8 @@ async fn genetic_breeds_grid_points_generation_after_generation_across_a_restart
     );
     let db = coord.db().await;
     let cells: Vec<(i64, i64, i64, f64, f64, String, i64)> = sqlx::query_as(
-        "SELECT id, w1_index, w2_index, w1, w2, state, epochs_done FROM cells ORDER BY w1_index, w2_index",
+        "SELECT id, generation, candidate, w1, w2, state, epochs_done FROM cells \
+         WHERE w1_index IS NULL ORDER BY generation, candidate",
     )
     .fetch_all(&db)
     .await

@@ -72,7 +72,15 @@ async fn a_two_terrain_sweep_scores_every_level_and_promotes_the_point_best_acro
     .fetch_all(&db)
     .await
     .unwrap();
-    let cells: Vec<ScoredCell> = scored.iter().copied().map(ScoredCell::from_row).collect();
+    let cells: Vec<ScoredCell> = scored
+        .iter()
+        .map(|&(id, terrain, i, j, score)| ScoredCell {
+            cell: gaitsweep_core::CellId(id),
+            terrain: terrain as usize,
+            place: gaitsweep_core::Place::point(i as u32, j as u32),
+            score,
+        })
+        .collect();
     let want = across::best_across(&cells, 2).unwrap_or_else(|| {
         panic!("an untrained policy standing for 2 s under commands of 0-1 m/s scores above 0 on both terrains: {scored:?}")
     });

@@ -2,7 +2,8 @@
 //! fall rate, the promoted cell with its per-level scores, the finalists and the point best
 //! across terrains.
 
-use gaitsweep_core::pb;
+use gaitsweep_core::convert::place_of;
+use gaitsweep_core::{pb, Place};
 
 pub(crate) fn sweep_state(s: i32) -> &'static str {
     match pb::SweepState::try_from(s).unwrap_or_default() {
@@ -76,7 +77,7 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
     let best_point = cells
         .iter()
         .find(|c| c.cell_id == s.best_cell_id)
-        .map(|b| (b.terrain_index, b.w1_index, b.w2_index));
+        .map(|b| (b.terrain_index, place_of(b)));
     // The search lays the sweep out and names itself; a spec this client cannot resolve
     // (a newer coordinator's) is shown as a grid under its method's name.
     let search = gaitsweep_core::convert::resolved_from_wire(spec.clone())
@@ -147,7 +148,7 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
             let _ = write!(o, "{:>10.3}", w1);
             for j in 0..s.w2_values.len() {
                 let here = point(i, j);
-                let mark = if best_point == Some((ti as u32, i as u32, j as u32)) {
+                let mark = if best_point == Some((ti as u32, Place::point(i as u32, j as u32))) {
                     "*"
                 } else if best_here.is_some_and(|b| b.0 == (i, j)) {
                     "+"
@@ -168,10 +169,7 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
             if replicates > 1 {
                 let here: Vec<&pb::Cell> = cells
                     .iter()
-                    .filter(|c| {
-                        (c.terrain_index, c.w1_index, c.w2_index)
-                            == (b.terrain_index, b.w1_index, b.w2_index)
-                    })
+                    .filter(|c| (c.terrain_index, place_of(c)) == (b.terrain_index, place_of(b)))
                     .collect();
                 if let Some((st, fall)) = point_summary(&here) {
                     let _ = writeln!(
@@ -213,8 +211,7 @@ pub(crate) fn across_line(spec: &pb::SweepSpec, s: &pb::Sweep, cells: &[pb::Cell
             Some(across::ScoredCell {
                 cell: gaitsweep_core::CellId(c.cell_id),
                 terrain: c.terrain_index as usize,
-                w1_index: c.w1_index,
-                w2_index: c.w2_index,
+                place: place_of(c),
                 score: c.score.as_ref()?.score,
             })
         })
@@ -295,10 +292,13 @@ pub(crate) fn render_candidates(
     title: &str,
     cells: &[pb::Cell],
     replicates: u32,
-    best: Option<(u32, u32, u32)>,
+    best: Option<(u32, Place)>,
 ) {
     use std::fmt::Write;
-    let mut points: Vec<(u32, u32)> = cells.iter().map(|c| (c.w1_index, c.w2_index)).collect();
+    let mut points: Vec<(u32, u32)> = cells
+        .iter()
+        .filter_map(|c| place_of(c).generation())
+        .collect();
     points.sort_unstable();
     points.dedup();
     let _ = writeln!(
@@ -316,9 +316,9 @@ pub(crate) fn render_candidates(
     for (g, k) in points {
         let here: Vec<&pb::Cell> = cells
             .iter()
-            .filter(|c| (c.w1_index, c.w2_index) == (g, k))
+            .filter(|c| place_of(c).generation() == Some((g, k)))
             .collect();
-        let mark = if best.is_some_and(|b| (b.1, b.2) == (g, k)) {
+        let mark = if best.is_some_and(|b| b.1 == Place::candidate(g, k)) {
             "*"
         } else {
             " "

@@ -120,8 +120,10 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
             json!({
                 "id": c.id,
                 "terrain_index": c.terrain_index,
-                "w1_index": c.w1_index,
-                "w2_index": c.w2_index,
+                "w1_index": c.place.grid().map(|p| p.0),
+                "w2_index": c.place.grid().map(|p| p.1),
+                "generation": c.place.generation().map(|p| p.0),
+                "candidate": c.place.generation().map(|p| p.1),
                 "w1": c.w1,
                 "w2": c.w2,
                 "replicate": c.replicate,

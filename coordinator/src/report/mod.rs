@@ -23,7 +23,7 @@ use crate::store::queries::{self, EvalKinds};
 use crate::store::rows::{CellRow, CELL_COLUMNS};
 use anyhow::Context;
 use gaitsweep_core::records::CellRecord;
-use gaitsweep_core::SweepId;
+use gaitsweep_core::{Place, SweepId};
 use gaitsweep_model::GaitScore;
 use gaitsweep_search::Layout;
 use sqlx::{FromRow, Row};
@@ -45,12 +45,11 @@ pub struct ReportCell {
     pub terrain_index: usize,
     /// Terrain name.
     pub terrain: String,
-    /// Row (index into [`ReportData::w1_values`]).
-    pub w1_index: usize,
+    /// Its grid point (indices into [`ReportData::w1_values`] and
+    /// [`ReportData::w2_values`]), or its generation and number as a candidate.
+    pub place: Place,
     /// Replicate number within its grid point (`seeds = k` in the spec).
     pub replicate: u32,
-    /// Column (index into [`ReportData::w2_values`]).
-    pub w2_index: usize,
     /// Velocity-tracking weight.
     pub w1: f64,
     /// log10 of the torque-penalty weight.
@@ -74,6 +73,11 @@ pub struct ReportCell {
 }
 
 impl ReportCell {
+    /// Its grid point as `(row, column)`; `None` for an evolutionary candidate.
+    pub fn grid(&self) -> Option<(usize, usize)> {
+        self.place.grid().map(|(i, j)| (i as usize, j as usize))
+    }
+
     /// The composite score, if the cell has a finite one.
     pub fn value(&self) -> Option<f64> {
         self.score
@@ -118,8 +122,8 @@ pub struct ReportData {
     /// Latest promotion per terrain ('' = overall).
     pub promotions: Vec<Promotion>,
     /// For an evolutionary search, the (w1, w2) rectangle it searched
-    /// (`([w1_lo, w2_lo], [w1_hi, w2_hi])`): its cells are candidates (`w1_index` =
-    /// generation), not grid points, and the report draws them instead of grid pictures.
+    /// (`([w1_lo, w2_lo], [w1_hi, w2_hi])`): its cells are candidates, not grid points,
+    /// and the report draws them instead of grid pictures.
     pub evolution: Option<([f64; 2], [f64; 2])>,
     /// The search method as a spec writes it (`grid`, `asha`, `cmaes`, `genetic`, `random`).
     pub search: String,
@@ -143,8 +147,7 @@ impl ReportData {
                 Some(crate::across::ScoredCell {
                     cell: gaitsweep_core::CellId(c.id),
                     terrain: c.terrain_index,
-                    w1_index: c.w1_index as u32,
-                    w2_index: c.w2_index as u32,
+                    place: c.place,
                     score: c.value()?,
                 })
             })
@@ -189,7 +192,7 @@ impl ReportData {
     pub fn grid<T: Clone>(&self, t: usize, empty: T, f: impl Fn(&ReportCell) -> T) -> Vec<Vec<T>> {
         let mut g = vec![vec![empty; self.w2_values.len()]; self.w1_values.len()];
         for c in self.cells_of(t) {
-            if let Some(slot) = g.get_mut(c.w1_index).and_then(|r| r.get_mut(c.w2_index)) {
+            if let Some(slot) = c.grid().and_then(|(i, j)| g.get_mut(i)?.get_mut(j)) {
                 *slot = f(c);
             }
         }
@@ -205,10 +208,9 @@ impl ReportData {
     ) -> Vec<Vec<Option<f64>>> {
         let mut sum = vec![vec![(0.0, 0usize); self.w2_values.len()]; self.w1_values.len()];
         for c in self.cells_of(t) {
-            if let (Some(v), Some(slot)) = (
-                f(c),
-                sum.get_mut(c.w1_index).and_then(|r| r.get_mut(c.w2_index)),
-            ) {
+            if let (Some(v), Some(slot)) =
+                (f(c), c.grid().and_then(|(i, j)| sum.get_mut(i)?.get_mut(j)))
+            {
                 slot.0 += v;
                 slot.1 += 1;
             }
@@ -236,9 +238,7 @@ impl ReportData {
             let threshold = v[v.len().div_ceil(4) - 1];
             for c in self.cells_of(t) {
                 if c.value().is_some_and(|x| x >= threshold) {
-                    if let Some(Some(n)) = count
-                        .get_mut(c.w1_index)
-                        .and_then(|r| r.get_mut(c.w2_index))
+                    if let Some(Some(n)) = c.grid().and_then(|(i, j)| count.get_mut(i)?.get_mut(j))
                     {
                         *n += 1.0;
                     }
@@ -287,7 +287,8 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> 
          FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
          LEFT JOIN checkpoints fk ON fk.sha256 = s.final_checkpoint_sha256 \
          LEFT JOIN checkpoints lk ON lk.sha256 = c.last_checkpoint_sha256 \
-         WHERE c.sweep_id = $1 ORDER BY c.terrain_index, c.w1_index, c.w2_index, c.replicate"
+         WHERE c.sweep_id = $1 \
+         ORDER BY c.terrain_index, c.w1_index, c.w2_index, c.generation, c.candidate, c.replicate"
     );
     for r in sqlx::query(&sql).bind(sweep).fetch_all(db).await? {
         let checkpoint: Option<String> = r.try_get("ckpt_path")?;
@@ -296,9 +297,8 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> 
             id: c.id.0,
             terrain_index: c.terrain_index as usize,
             terrain: c.terrain,
-            w1_index: c.w1_index as usize,
+            place: c.place,
             replicate: c.replicate,
-            w2_index: c.w2_index as usize,
             w1: c.w1,
             w2: c.w2,
             state: c.state.to_string(),
@@ -378,8 +378,9 @@ fn fill_axes(d: &mut ReportData) {
     if d.terrains.len() < n_t {
         d.terrains.resize(n_t, String::new());
     }
-    let n1 = d.cells.iter().map(|c| c.w1_index + 1).max().unwrap_or(0);
-    let n2 = d.cells.iter().map(|c| c.w2_index + 1).max().unwrap_or(0);
+    let points = || d.cells.iter().filter_map(|c| Some((c, c.grid()?)));
+    let n1 = points().map(|(_, (i, _))| i + 1).max().unwrap_or(0);
+    let n2 = points().map(|(_, (_, j))| j + 1).max().unwrap_or(0);
     if d.w1_values.len() < n1 {
         d.w1_values.resize(n1, f64::NAN);
     }
@@ -390,11 +391,14 @@ fn fill_axes(d: &mut ReportData) {
         if d.terrains[c.terrain_index].is_empty() {
             d.terrains[c.terrain_index] = c.terrain.clone();
         }
-        if d.w1_values[c.w1_index].is_nan() {
-            d.w1_values[c.w1_index] = c.w1;
+        let Some((i, j)) = c.grid() else {
+            continue;
+        };
+        if d.w1_values[i].is_nan() {
+            d.w1_values[i] = c.w1;
         }
-        if d.w2_values[c.w2_index].is_nan() {
-            d.w2_values[c.w2_index] = c.w2;
+        if d.w2_values[j].is_nan() {
+            d.w2_values[j] = c.w2;
         }
     }
 }

@@ -64,9 +64,8 @@ fn synthetic() -> ReportData {
                     id,
                     terrain_index: t,
                     terrain: terrain.clone(),
-                    w1_index: i,
+                    place: gaitsweep_core::Place::point(i as u32, j as u32),
                     replicate: 0,
-                    w2_index: j,
                     w1: *a,
                     w2: *b,
                     state: state.into(),
@@ -145,7 +144,7 @@ fn best_and_overlap_follow_the_scores() {
     let d = synthetic();
     let best = d.best_cell(None).unwrap();
     assert_eq!(
-        (best.terrain_index, best.w1_index),
+        (best.terrain_index, best.grid().unwrap().0),
         (1, 2),
         "the highest score is on rough, w1 = 12"
     );
@@ -159,10 +158,7 @@ fn best_and_overlap_follow_the_scores() {
     for &(i, j) in &cells {
         assert_eq!(count[i][j], Some(2.0));
         for t in 0..2 {
-            let c = d
-                .cells_of(t)
-                .find(|c| c.w1_index == i && c.w2_index == j)
-                .unwrap();
+            let c = d.cells_of(t).find(|c| c.grid() == Some((i, j))).unwrap();
             assert!(
                 c.value().is_some(),
                 "overlap cells are scored on every terrain"
@@ -440,7 +436,7 @@ fn a_one_cell_grid_is_drawn() {
     d.w1_values.truncate(1);
     d.w2_values.truncate(1);
     d.cells
-        .retain(|c| c.terrain_index == 0 && c.w1_index == 0 && c.w2_index == 0);
+        .retain(|c| c.terrain_index == 0 && c.grid() == Some((0, 0)));
     let dir = tempfile::tempdir().unwrap();
     write_report(&d, dir.path(), &GifStatus::NotMade("x".into())).unwrap();
     for s in ["score_flat", "surface_flat", "curves_flat", "tilt_flat"] {
@@ -485,12 +481,14 @@ fn replicated_points_are_drawn_as_their_mean() {
 
 #[test]
 fn an_evolutionary_search_is_drawn_as_its_candidates() {
-    // Three generations of four candidates, read as an evolutionary search's cells
-    // (w1_index = generation, w2_index = candidate) on one terrain.
+    // Three generations of four candidates, the synthetic grid's cells made an
+    // evolutionary search's candidates on one terrain.
     let mut d = synthetic();
     d.terrains.truncate(1);
     d.cells.retain(|c| c.terrain_index == 0);
     for (n, c) in d.cells.iter_mut().enumerate() {
+        let (i, j) = c.place.pair();
+        c.place = gaitsweep_core::Place::candidate(i, j);
         c.w1 = 2.0 + (n as f64 * 0.77) % 10.0;
         c.w2 = -10.0 + (n as f64 * 1.31) % 8.0;
     }

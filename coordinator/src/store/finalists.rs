@@ -16,7 +16,8 @@ use crate::Result;
 /// The points that have cells past the first pass (replicate > 0): the finalists.
 async fn finalist_points(tx: &mut Tx, sweep: SweepId) -> Result<BTreeSet<Point>> {
     let rows: Vec<(i64, i64, i64)> = sqlx::query_as(
-        "SELECT DISTINCT terrain_index, w1_index, w2_index FROM cells WHERE sweep_id = $1 AND replicate > 0",
+        "SELECT DISTINCT terrain_index, w1_index, w2_index FROM cells \
+         WHERE sweep_id = $1 AND replicate > 0 AND w1_index IS NOT NULL",
     )
     .bind(sweep.0)
     .fetch_all(&mut **tx)

@@ -79,7 +79,7 @@ async fn promote_across_terrains(
     Ok(())
 }
 
-/// Promotes the grid point of `cell` once all its replicates are closed: ranked by the mean
+/// Promotes the grid point (or candidate) of `cell` once all its replicates are closed: ranked by the mean
 /// of their scores, represented by its best replicate (whose checkpoint is the model). With
 /// one replicate this is the cell and its score.
 pub(super) async fn promote_point(
@@ -98,14 +98,16 @@ pub(super) async fn promote_point(
             return Ok(vec![]);
         }
     }
-    let rows: Vec<(i64, String, Option<f64>)> = sqlx::query_as(
+    let (a, b) = queries::place_filter(cell.place);
+    let (i, j) = cell.place.pair();
+    let rows: Vec<(i64, String, Option<f64>)> = sqlx::query_as(&format!(
         "SELECT c.id, c.state, s.score FROM cells c LEFT JOIN scores s ON s.cell_id = c.id \
-         WHERE c.sweep_id = $1 AND c.terrain_index = $2 AND c.w1_index = $3 AND c.w2_index = $4 ORDER BY c.id",
-    )
+         WHERE c.sweep_id = $1 AND c.terrain_index = $2 AND c.{a} = $3 AND c.{b} = $4 ORDER BY c.id"
+    ))
     .bind(cell.sweep_id.0)
     .bind(i64::from(cell.terrain_index))
-    .bind(i64::from(cell.w1_index))
-    .bind(i64::from(cell.w2_index))
+    .bind(i64::from(i))
+    .bind(i64::from(j))
     .fetch_all(&mut **tx)
     .await?;
     let open = rows

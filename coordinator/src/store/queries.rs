@@ -4,7 +4,7 @@
 use super::rows::spec_of;
 use crate::across::ScoredCell;
 use crate::{Error, Result};
-use gaitsweep_core::{CellId, CellState, ResolvedSpec, SweepId};
+use gaitsweep_core::{CellId, CellState, Place, ResolvedSpec, SweepId};
 use gaitsweep_search::CellView;
 use sqlx::{Any, Executor};
 use std::collections::BTreeMap;
@@ -44,10 +44,8 @@ pub async fn sweep_spec<'e>(
 pub struct EvalPoint {
     /// The cell.
     pub cell_id: i64,
-    /// Its grid row (an evolutionary sweep's generation).
-    pub w1_index: i64,
-    /// Its grid column (an evolutionary sweep's candidate).
-    pub w2_index: i64,
+    /// Its grid point, or its generation and number as a candidate.
+    pub place: Place,
     /// Epoch of the evaluation.
     pub epoch: i64,
     /// Score.
@@ -77,24 +75,43 @@ pub async fn evaluations<'e>(
         EvalKinds::All => "",
     };
     let sql = format!(
-        "SELECT e.cell_id, c.w1_index, c.w2_index, e.epoch, e.score, e.fall_rate FROM evaluations e \
+        "SELECT e.cell_id, {PLACE_COLUMNS}, e.epoch, e.score, e.fall_rate FROM evaluations e \
          JOIN cells c ON c.id = e.cell_id WHERE c.sweep_id = $1{filter} ORDER BY e.epoch, e.cell_id"
     );
-    let rows: Vec<(i64, i64, i64, i64, f64, Option<f64>)> =
-        sqlx::query_as(&sql).bind(sweep.0).fetch_all(db).await?;
-    Ok(rows
-        .into_iter()
-        .map(
-            |(cell_id, w1_index, w2_index, epoch, score, fall_rate)| EvalPoint {
+    type Row = (
+        i64,
+        Option<i64>,
+        Option<i64>,
+        Option<i64>,
+        Option<i64>,
+        i64,
+        f64,
+        Option<f64>,
+    );
+    let rows: Vec<Row> = sqlx::query_as(&sql).bind(sweep.0).fetch_all(db).await?;
+    rows.into_iter()
+        .map(|(cell_id, a, b, g, k, epoch, score, fall_rate)| {
+            Ok(EvalPoint {
                 cell_id,
-                w1_index,
-                w2_index,
+                place: Place::from_columns(a, b, g, k)?,
                 epoch,
                 score,
                 fall_rate,
-            },
-        )
-        .collect())
+            })
+        })
+        .collect()
+}
+
+/// The columns a cell's [`Place`] is stored in, as `c.` columns of a select.
+pub const PLACE_COLUMNS: &str = "c.w1_index, c.w2_index, c.generation, c.candidate";
+
+/// The two columns that hold a place of this kind (`w1_index, w2_index` of a grid point,
+/// `generation, candidate` of a candidate), for a filter on it.
+pub(super) fn place_filter(place: Place) -> (&'static str, &'static str) {
+    match place {
+        Place::Point { .. } => ("w1_index", "w2_index"),
+        Place::Candidate { .. } => ("generation", "candidate"),
+    }
 }
 
 /// Every scored cell of `sweep` with its final score, in id order: what promotion across
@@ -103,14 +120,32 @@ pub(super) async fn scored_cells<'e>(
     db: impl Executor<'e, Database = Any>,
     sweep: SweepId,
 ) -> Result<Vec<ScoredCell>> {
-    let rows: Vec<(i64, i64, i64, i64, f64)> = sqlx::query_as(
-        "SELECT c.id, c.terrain_index, c.w1_index, c.w2_index, s.score FROM cells c \
-         JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id",
-    )
+    type Row = (
+        i64,
+        i64,
+        Option<i64>,
+        Option<i64>,
+        Option<i64>,
+        Option<i64>,
+        f64,
+    );
+    let rows: Vec<Row> = sqlx::query_as(&format!(
+        "SELECT c.id, c.terrain_index, {PLACE_COLUMNS}, s.score FROM cells c \
+         JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id"
+    ))
     .bind(sweep.0)
     .fetch_all(db)
     .await?;
-    Ok(rows.into_iter().map(ScoredCell::from_row).collect())
+    rows.into_iter()
+        .map(|(id, terrain, a, b, g, k, score)| {
+            Ok(ScoredCell {
+                cell: CellId(id),
+                terrain: terrain.max(0) as usize,
+                place: Place::from_columns(a, b, g, k)?,
+                score,
+            })
+        })
+        .collect()
 }
 
 /// Every cell of `sweep` as its search method sees it ([`SearchMethod::react`]), in id
@@ -118,10 +153,19 @@ pub(super) async fn scored_cells<'e>(
 ///
 /// [`SearchMethod::react`]: gaitsweep_search::SearchMethod::react
 pub(super) async fn search_view(tx: &mut super::sql::Tx, sweep: SweepId) -> Result<Vec<CellView>> {
-    let rows: Vec<(i64, i64, i64, String, Option<f64>)> = sqlx::query_as(
-        "SELECT c.id, c.w1_index, c.w2_index, c.state, s.score FROM cells c \
-         LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id",
-    )
+    type Row = (
+        i64,
+        Option<i64>,
+        Option<i64>,
+        Option<i64>,
+        Option<i64>,
+        String,
+        Option<f64>,
+    );
+    let rows: Vec<Row> = sqlx::query_as(&format!(
+        "SELECT c.id, {PLACE_COLUMNS}, c.state, s.score FROM cells c \
+         LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id"
+    ))
     .bind(sweep.0)
     .fetch_all(&mut **tx)
     .await?;
@@ -133,11 +177,10 @@ pub(super) async fn search_view(tx: &mut super::sql::Tx, sweep: SweepId) -> Resu
             .insert(e.epoch as u32, e.score);
     }
     rows.into_iter()
-        .map(|(id, w1_index, w2_index, state, score)| {
+        .map(|(id, a, b, g, k, state, score)| {
             Ok(CellView {
                 id: CellId(id),
-                w1_index: w1_index as u32,
-                w2_index: w2_index as u32,
+                place: Place::from_columns(a, b, g, k)?,
                 state: CellState::from_str(&state)?,
                 score,
                 rungs: rungs.remove(&id).unwrap_or_default(),

@@ -4,7 +4,7 @@
 
 use crate::{Error, Result};
 use gaitsweep_core::records::{CellRecord, SweepRecord};
-use gaitsweep_core::{CellId, CellState, ResolvedSpec, SweepId, SweepState};
+use gaitsweep_core::{CellId, CellState, Place, ResolvedSpec, SweepId, SweepState};
 use gaitsweep_model::GaitScore;
 use std::str::FromStr;
 
@@ -73,10 +73,14 @@ pub struct CellRow {
     pub terrain_index: i64,
     /// Terrain name.
     pub terrain: String,
-    /// Row of the grid.
-    pub w1_index: i64,
-    /// Column of the grid.
-    pub w2_index: i64,
+    /// Row of the grid (NULL for a candidate).
+    pub w1_index: Option<i64>,
+    /// Column of the grid (NULL for a candidate).
+    pub w2_index: Option<i64>,
+    /// A candidate's generation (NULL for a grid point).
+    pub generation: Option<i64>,
+    /// A candidate's number in its generation (NULL for a grid point).
+    pub candidate: Option<i64>,
     /// Velocity-tracking weight.
     pub w1: f64,
     /// log10 of the torque weight.
@@ -104,7 +108,8 @@ pub struct CellRow {
 
 /// The columns [`CellRow`] reads: `cells c LEFT JOIN scores s`.
 pub const CELL_COLUMNS: &str =
-    "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.w1, c.w2, \
+    "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.generation, \
+     c.candidate, c.w1, c.w2, \
      c.seed, c.replicate, c.state, c.attempts, c.epochs_done, c.target_epochs, c.last_error, \
      (SELECT d.score FROM rung_decisions d WHERE d.cell_id = c.id ORDER BY d.rung DESC LIMIT 1) AS rung_score, s.score, s.track, s.effort, s.tilt, \
      s.progress, s.fall_rate, s.mean_vel_error, s.mean_abs_torque, s.cost_of_transport, s.robots, \
@@ -118,8 +123,7 @@ impl TryFrom<CellRow> for CellRecord {
             sweep_id: SweepId(r.sweep_id),
             terrain_index: r.terrain_index as u32,
             terrain: r.terrain,
-            w1_index: r.w1_index as u32,
-            w2_index: r.w2_index as u32,
+            place: Place::from_columns(r.w1_index, r.w2_index, r.generation, r.candidate)?,
             w1: r.w1,
             w2: r.w2,
             seed: r.seed as u64,

@@ -228,22 +228,22 @@ pub(super) async fn insert_cells(
     target: u32,
 ) -> Result<()> {
     for c in cells {
-        sqlx::query(
-            "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, replicate, seed, state, target_epochs) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, 'queued', $10)",
+        let query = sqlx::query(
+            "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, generation, candidate, w1, w2, replicate, seed, state, target_epochs) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, 'queued', $12)",
         )
         .bind(sweep.0)
         .bind(c.terrain_index as i64)
-        .bind(c.terrain.to_string())
-        .bind(c.w1_index as i64)
-        .bind(c.w2_index as i64)
-        .bind(c.w1)
-        .bind(c.w2)
-        .bind(i64::from(c.replicate))
-        .bind(c.seed as i64)
-        .bind(i64::from(target))
-        .execute(&mut **tx)
-        .await?;
+        .bind(c.terrain.to_string());
+        let query = c.place.columns().into_iter().fold(query, |q, v| q.bind(v));
+        query
+            .bind(c.w1)
+            .bind(c.w2)
+            .bind(i64::from(c.replicate))
+            .bind(c.seed as i64)
+            .bind(i64::from(target))
+            .execute(&mut **tx)
+            .await?;
     }
     Ok(())
 }

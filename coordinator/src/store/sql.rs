@@ -211,7 +211,7 @@ impl Store for SqlStore {
         self.sweep(id).await?;
         let sql = format!(
             "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 \
-             ORDER BY c.terrain_index, c.w1_index, c.w2_index, c.replicate"
+             ORDER BY c.terrain_index, c.w1_index, c.w2_index, c.generation, c.candidate, c.replicate"
         );
         let mut cells = sqlx::query(&sql)
             .bind(id.0)

@@ -496,11 +496,17 @@ async fn replicates_promote_a_point_by_their_mean_once_all_are_done() {
     while let Some(g) = store.lease_next(&w, 0, 1).await.unwrap() {
         let c = g.cell.clone();
         let out = store
-            .report_result(g.lease, &score(value(c.w1_index, c.replicate)), 3, None, 3)
+            .report_result(
+                g.lease,
+                &score(value(c.place.pair().0, c.replicate)),
+                3,
+                None,
+                3,
+            )
             .await
             .unwrap();
-        reported[c.w1_index as usize] += 1;
-        if reported[c.w1_index as usize] < 2 {
+        reported[c.place.pair().0 as usize] += 1;
+        if reported[c.place.pair().0 as usize] < 2 {
             assert!(
                 out.promotions.is_empty(),
                 "promoted before its other replicate reported"
@@ -512,7 +518,7 @@ async fn replicates_promote_a_point_by_their_mean_once_all_are_done() {
             );
         }
         for p in &out.promotions {
-            assert_eq!(p.cell.w1_index, c.w1_index);
+            assert_eq!(p.cell.place.pair().0, c.place.pair().0);
             // Point 0's best is its 0.9; point 1's replicates tie and the lower id wins.
             assert_eq!(
                 p.cell.replicate, 0,
@@ -522,7 +528,8 @@ async fn replicates_promote_a_point_by_their_mean_once_all_are_done() {
     }
     let best = store.promoted(sweep.id, None).await.unwrap();
     assert_eq!(
-        best.cell.w1_index, 1,
+        best.cell.place.pair().0,
+        1,
         "mean 0.6 beats mean 0.5 despite the single 0.9"
     );
     assert_eq!(best.cell.replicate, 0, "ties go to the lower id");
@@ -538,7 +545,7 @@ async fn finalists_get_more_seeds_and_the_best_mean_is_promoted() {
     assert_eq!(sweep.cells_total, 4, "the first pass is one seed per point");
     // First pass: (0,0) 0.9 and (0,1) 0.8 are the finalists; their further seeds score
     // 0.3, 0.3 (mean 0.5) and 0.7, 0.6 (mean 0.7).
-    let value = |c: &CellRecord| match (c.w1_index, c.w2_index, c.replicate) {
+    let value = |c: &CellRecord| match (c.place.pair().0, c.place.pair().1, c.replicate) {
         (0, 0, 0) => 0.9,
         (0, 0, _) => 0.3,
         (0, 1, 0) => 0.8,
@@ -562,13 +569,10 @@ async fn finalists_get_more_seeds_and_the_best_mean_is_promoted() {
     replicated.replicates = 3;
     let twins = replicated.cells();
     for c in cells.iter().filter(|c| c.replicate > 0) {
-        assert_eq!(c.w1_index, 0, "only the top 2 points get more seeds");
+        assert_eq!(c.place.pair().0, 0, "only the top 2 points get more seeds");
         let twin = twins
             .iter()
-            .find(|t| {
-                (t.w1_index as u32, t.w2_index as u32, t.replicate)
-                    == (c.w1_index, c.w2_index, c.replicate)
-            })
+            .find(|t| (t.place, t.replicate) == (c.place, c.replicate))
             .unwrap();
         assert_eq!(
             c.seed, twin.seed,
@@ -590,7 +594,11 @@ async fn finalists_get_more_seeds_and_the_best_mean_is_promoted() {
     assert_eq!(finished.unwrap().state, SweepState::Done);
     let best = store.promoted(sweep.id, None).await.unwrap();
     assert_eq!(
-        (best.cell.w1_index, best.cell.w2_index, best.cell.replicate),
+        (
+            best.cell.place.pair().0,
+            best.cell.place.pair().1,
+            best.cell.replicate
+        ),
         (0, 1, 0),
         "mean 0.7 beats the lucky single 0.9 (mean 0.5); its best seed stands for it"
     );
@@ -792,7 +800,7 @@ async fn the_evolutionary_search_queues_a_generation_when_the_last_one_ends() {
     let gen0 = store.cells(sweep.id).await.unwrap();
     assert_eq!(gen0.len(), 6, "3 candidates x 2 replicates");
     for c in &gen0 {
-        assert_eq!((c.w1_index, c.target_epochs), (0, 3));
+        assert_eq!((c.place.generation().unwrap().0, c.target_epochs), (0, 3));
         assert!(
             (0.0..=2.0).contains(&c.w1) && (-2.0..=0.0).contains(&c.w2),
             "{c:?}"
@@ -807,7 +815,7 @@ async fn the_evolutionary_search_queues_a_generation_when_the_last_one_ends() {
     let mut now = 1;
     for n in 0..6 {
         let g = store.lease_next(&w, 0, now).await.unwrap().unwrap();
-        assert_eq!(g.cell.w1_index, 0);
+        assert_eq!(g.cell.place.generation().unwrap().0, 0);
         now += 1;
         if n == 1 {
             let end = store
@@ -827,7 +835,10 @@ async fn the_evolutionary_search_queues_a_generation_when_the_last_one_ends() {
         );
     }
     let cells = store.cells(sweep.id).await.unwrap();
-    let gen1: Vec<_> = cells.iter().filter(|c| c.w1_index == 1).collect();
+    let gen1: Vec<_> = cells
+        .iter()
+        .filter(|c| c.place.generation().unwrap().0 == 1)
+        .collect();
     assert_eq!(gen1.len(), 6);
     assert!(gen1.iter().all(|c| c.state == CellState::Queued));
 
@@ -871,7 +882,10 @@ async fn cmaes_halves_inside_each_generation() {
     let mut decided = Vec::new();
     for _ in 0..3 {
         let (g, out) = train_to_target(&store, &w, 0.0, now).await.unwrap();
-        assert_eq!((g.cell.w1_index, g.cell.target_epochs), (0, 1));
+        assert_eq!(
+            (g.cell.place.generation().unwrap().0, g.cell.target_epochs),
+            (0, 1)
+        );
         decided.extend(out.decisions);
         now += 1;
     }
@@ -893,7 +907,9 @@ async fn cmaes_halves_inside_each_generation() {
     assert_eq!(cells.len(), 6);
     assert!(cells[3..]
         .iter()
-        .all(|c| c.w1_index == 1 && c.state == CellState::Queued && c.target_epochs == 1));
+        .all(|c| c.place.generation().unwrap().0 == 1
+            && c.state == CellState::Queued
+            && c.target_epochs == 1));
     // Generation 1 repeats it; the budget's two generations end the sweep.
     let mut finished = None;
     while let Some((_, out)) = train_to_target(&store, &w, 0.1, now + 10).await {
@@ -1087,6 +1103,114 @@ mod pg {
     }
 }
 
+/// A database written before `generation` and `candidate` existed: an evolutionary
+/// sweep's candidates (stored then as `w1_index` = generation, `w2_index` = number) move
+/// to their own columns, a grid's cells keep theirs, and both read back as their place.
+async fn old_candidates_move_to_their_own_columns() {
+    use gaitsweep_core::Place;
+    use sqlx::{Connection, Executor};
+    let dir = tempfile::tempdir().unwrap();
+    let backend = BACKEND.try_with(|b| *b).unwrap_or(Backend::Sqlite);
+    let (url, migrator) = match backend {
+        Backend::Sqlite => (
+            DatabaseUrl::Sqlite(dir.path().join("db.sqlite")),
+            &super::sql::MIGRATOR,
+        ),
+        Backend::Postgres => (
+            DatabaseUrl::Postgres(pg::fresh_database().await),
+            &super::sql::PG_MIGRATOR,
+        ),
+    };
+    let before = sqlx::migrate::Migrator {
+        migrations: migrator
+            .iter()
+            .filter(|m| m.version < 20261204000000)
+            .cloned()
+            .collect::<Vec<_>>()
+            .into(),
+        ..sqlx::migrate::Migrator::DEFAULT
+    };
+    sqlx::any::install_default_drivers();
+    let conn_url = match &url {
+        DatabaseUrl::Sqlite(p) => format!("sqlite://{}?mode=rwc", p.display()),
+        DatabaseUrl::Postgres(u) => u.clone(),
+    };
+    let mut conn = sqlx::AnyConnection::connect(&conn_url).await.unwrap();
+    if backend == Backend::Sqlite {
+        conn.execute("PRAGMA foreign_keys = OFF").await.unwrap();
+    }
+    before.run(&mut conn).await.unwrap();
+    let mut grid = spec(2, 2, vec![TerrainKind::Flat]);
+    grid.name = "grid".into();
+    let mut cmaes = grid.clone();
+    cmaes.name = "cmaes".into();
+    cmaes.search = gaitsweep_core::Search::Cmaes {
+        population: 2,
+        sigma: 0.3,
+        generations: 2,
+        min_epochs: 0,
+        reduction: 0,
+    };
+    for (id, s) in [(1i64, &grid), (2, &cmaes)] {
+        sqlx::query(
+            "INSERT INTO sweeps (id, name, robot, spec_json, state, created_unix_ms) \
+             VALUES ($1, $2, 'anymal', $3, 'running', 0)",
+        )
+        .bind(id)
+        .bind(&s.name)
+        .bind(serde_json::to_string(s).unwrap())
+        .execute(&mut conn)
+        .await
+        .unwrap();
+        for (i, j) in [(0i64, 1i64), (1, 0)] {
+            sqlx::query(
+                "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, w1, w2, \
+                 seed, state, target_epochs) VALUES ($1, 0, 'flat', $2, $3, 1.5, -3.0, 7, 'queued', 3)",
+            )
+            .bind(id)
+            .bind(i)
+            .bind(j)
+            .execute(&mut conn)
+            .await
+            .unwrap();
+        }
+    }
+    conn.close().await.unwrap();
+
+    let store = SqlStore::connect(&url).await.unwrap();
+    let places = |cells: Vec<gaitsweep_core::records::CellRecord>| {
+        cells.into_iter().map(|c| c.place).collect::<Vec<_>>()
+    };
+    assert_eq!(
+        places(store.cells(SweepId(1)).await.unwrap()),
+        vec![Place::point(0, 1), Place::point(1, 0)]
+    );
+    let mut moved = places(store.cells(SweepId(2)).await.unwrap());
+    moved.sort();
+    assert_eq!(moved, vec![Place::candidate(0, 1), Place::candidate(1, 0)]);
+    // The columns say one place each: a row with both pairs, or neither, is refused.
+    for (a, b, g, k) in [
+        (Some(0i64), Some(0i64), Some(2i64), Some(0i64)),
+        (None, None, None, None),
+    ] {
+        let refused = sqlx::query(
+            "INSERT INTO cells (sweep_id, terrain_index, terrain, w1_index, w2_index, generation, \
+             candidate, w1, w2, seed, state, target_epochs) \
+             VALUES (2, 0, 'flat', $1, $2, $3, $4, 1.0, -1.0, 1, 'queued', 3)",
+        )
+        .bind(a)
+        .bind(b)
+        .bind(g)
+        .bind(k)
+        .execute(store.writer())
+        .await;
+        assert!(
+            refused.is_err(),
+            "a cell at {a:?} {b:?} {g:?} {k:?} was stored"
+        );
+    }
+}
+
 tokio::task_local! {
     /// The backend `setup` opens (SQLite unless a conformance test says otherwise).
     static BACKEND: Backend;
@@ -1131,4 +1255,5 @@ conformance!(
     concurrent_reports_share_commits_and_a_bad_one_fails_alone,
     each_level_of_an_evaluation_is_stored,
     the_readme_queries_run,
+    old_candidates_move_to_their_own_columns,
 );

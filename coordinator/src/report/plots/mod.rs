@@ -349,11 +349,11 @@ fn draw_evolution(
     bounds: ([f64; 2], [f64; 2]),
 ) -> anyhow::Result<Vec<PathBuf>> {
     let mut files = Vec::new();
-    let promoted = d.promoted().map(|c| (c.w1_index, c.w2_index));
+    let promoted = d.promoted().map(|c| c.place);
     for (t, terrain) in d.terrains.iter().enumerate() {
         let s = slug(terrain);
-        let mut points: Vec<(usize, usize)> =
-            d.cells_of(t).map(|c| (c.w1_index, c.w2_index)).collect();
+        let mut points: Vec<(u32, u32)> =
+            d.cells_of(t).filter_map(|c| c.place.generation()).collect();
         points.sort_unstable();
         points.dedup();
         let candidates: Vec<Candidate> = points
@@ -361,17 +361,17 @@ fn draw_evolution(
             .filter_map(|&(g, k)| {
                 let reps: Vec<&ReportCell> = d
                     .cells_of(t)
-                    .filter(|c| (c.w1_index, c.w2_index) == (g, k))
+                    .filter(|c| c.place.generation() == Some((g, k)))
                     .collect();
                 let scores: Vec<f64> = reps.iter().filter_map(|c| c.value()).collect();
                 let first = reps.first()?;
                 Some(Candidate {
                     w1: first.w1,
                     w2: first.w2,
-                    generation: g,
+                    generation: g as usize,
                     score: (!scores.is_empty())
                         .then(|| scores.iter().sum::<f64>() / scores.len() as f64),
-                    promoted: promoted == Some((g, k)),
+                    promoted: promoted == Some(gaitsweep_core::Place::candidate(g, k)),
                 })
             })
             .collect();
