@@ -1,7 +1,7 @@
 //! The reads that several parts of the coordinator share (the store's transactions, the
 //! report, the live API, the search benchmark): each query is written here once, typed.
 
-use super::rows::spec_of;
+use super::rows::{spec_of, PlaceRow, PLACE_COLUMNS};
 use crate::across::ScoredCell;
 use crate::{Error, Result};
 use gaitsweep_core::{CellId, CellState, Place, ResolvedSpec, SweepId};
@@ -78,32 +78,28 @@ pub async fn evaluations<'e>(
         "SELECT e.cell_id, {PLACE_COLUMNS}, e.epoch, e.score, e.fall_rate FROM evaluations e \
          JOIN cells c ON c.id = e.cell_id WHERE c.sweep_id = $1{filter} ORDER BY e.epoch, e.cell_id"
     );
-    type Row = (
-        i64,
-        Option<i64>,
-        Option<i64>,
-        Option<i64>,
-        Option<i64>,
-        i64,
-        f64,
-        Option<f64>,
-    );
+    #[derive(sqlx::FromRow)]
+    struct Row {
+        cell_id: i64,
+        #[sqlx(flatten)]
+        place: PlaceRow,
+        epoch: i64,
+        score: f64,
+        fall_rate: Option<f64>,
+    }
     let rows: Vec<Row> = sqlx::query_as(&sql).bind(sweep.0).fetch_all(db).await?;
     rows.into_iter()
-        .map(|(cell_id, a, b, g, k, epoch, score, fall_rate)| {
+        .map(|r| {
             Ok(EvalPoint {
-                cell_id,
-                place: Place::from_columns(a, b, g, k)?,
-                epoch,
-                score,
-                fall_rate,
+                cell_id: r.cell_id,
+                place: r.place.place()?,
+                epoch: r.epoch,
+                score: r.score,
+                fall_rate: r.fall_rate,
             })
         })
         .collect()
 }
-
-/// The columns a cell's [`Place`] is stored in, as `c.` columns of a select.
-pub const PLACE_COLUMNS: &str = "c.w1_index, c.w2_index, c.generation, c.candidate";
 
 /// The two columns that hold a place of this kind (`w1_index, w2_index` of a grid point,
 /// `generation, candidate` of a candidate), for a filter on it.
@@ -120,15 +116,14 @@ pub(super) async fn scored_cells<'e>(
     db: impl Executor<'e, Database = Any>,
     sweep: SweepId,
 ) -> Result<Vec<ScoredCell>> {
-    type Row = (
-        i64,
-        i64,
-        Option<i64>,
-        Option<i64>,
-        Option<i64>,
-        Option<i64>,
-        f64,
-    );
+    #[derive(sqlx::FromRow)]
+    struct Row {
+        id: i64,
+        terrain_index: i64,
+        #[sqlx(flatten)]
+        place: PlaceRow,
+        score: f64,
+    }
     let rows: Vec<Row> = sqlx::query_as(&format!(
         "SELECT c.id, c.terrain_index, {PLACE_COLUMNS}, s.score FROM cells c \
          JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id"
@@ -137,12 +132,12 @@ pub(super) async fn scored_cells<'e>(
     .fetch_all(db)
     .await?;
     rows.into_iter()
-        .map(|(id, terrain, a, b, g, k, score)| {
+        .map(|r| {
             Ok(ScoredCell {
-                cell: CellId(id),
-                terrain: terrain.max(0) as usize,
-                place: Place::from_columns(a, b, g, k)?,
-                score,
+                cell: CellId(r.id),
+                terrain: r.terrain_index.max(0) as usize,
+                place: r.place.place()?,
+                score: r.score,
             })
         })
         .collect()
@@ -153,15 +148,14 @@ pub(super) async fn scored_cells<'e>(
 ///
 /// [`SearchMethod::react`]: gaitsweep_search::SearchMethod::react
 pub(super) async fn search_view(tx: &mut super::sql::Tx, sweep: SweepId) -> Result<Vec<CellView>> {
-    type Row = (
-        i64,
-        Option<i64>,
-        Option<i64>,
-        Option<i64>,
-        Option<i64>,
-        String,
-        Option<f64>,
-    );
+    #[derive(sqlx::FromRow)]
+    struct Row {
+        id: i64,
+        #[sqlx(flatten)]
+        place: PlaceRow,
+        state: String,
+        score: Option<f64>,
+    }
     let rows: Vec<Row> = sqlx::query_as(&format!(
         "SELECT c.id, {PLACE_COLUMNS}, c.state, s.score FROM cells c \
          LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 ORDER BY c.id"
@@ -177,13 +171,13 @@ pub(super) async fn search_view(tx: &mut super::sql::Tx, sweep: SweepId) -> Resu
             .insert(e.epoch as u32, e.score);
     }
     rows.into_iter()
-        .map(|(id, a, b, g, k, state, score)| {
+        .map(|r| {
             Ok(CellView {
-                id: CellId(id),
-                place: Place::from_columns(a, b, g, k)?,
-                state: CellState::from_str(&state)?,
-                score,
-                rungs: rungs.remove(&id).unwrap_or_default(),
+                id: CellId(r.id),
+                place: r.place.place()?,
+                state: CellState::from_str(&r.state)?,
+                score: r.score,
+                rungs: rungs.remove(&r.id).unwrap_or_default(),
             })
         })
         .collect()

@@ -62,6 +62,34 @@ impl ScoreRow {
     }
 }
 
+/// The columns a cell's [`Place`] is stored in ([`PLACE_COLUMNS`]).
+#[derive(Debug, Clone, Copy, sqlx::FromRow)]
+pub struct PlaceRow {
+    /// Row of the grid (NULL for a candidate).
+    pub w1_index: Option<i64>,
+    /// Column of the grid (NULL for a candidate).
+    pub w2_index: Option<i64>,
+    /// A candidate's generation (NULL for a grid point).
+    pub generation: Option<i64>,
+    /// A candidate's number in its generation (NULL for a grid point).
+    pub candidate: Option<i64>,
+}
+
+/// The columns [`PlaceRow`] reads, of `cells c`.
+pub const PLACE_COLUMNS: &str = "c.w1_index, c.w2_index, c.generation, c.candidate";
+
+impl PlaceRow {
+    /// The place the columns hold; a row with both pairs or neither is an error.
+    pub fn place(self) -> Result<Place> {
+        Ok(Place::from_columns(
+            self.w1_index,
+            self.w2_index,
+            self.generation,
+            self.candidate,
+        )?)
+    }
+}
+
 /// A `cells` row with its score ([`CELL_COLUMNS`]).
 #[derive(Debug, Clone, sqlx::FromRow)]
 pub struct CellRow {
@@ -73,14 +101,9 @@ pub struct CellRow {
     pub terrain_index: i64,
     /// Terrain name.
     pub terrain: String,
-    /// Row of the grid (NULL for a candidate).
-    pub w1_index: Option<i64>,
-    /// Column of the grid (NULL for a candidate).
-    pub w2_index: Option<i64>,
-    /// A candidate's generation (NULL for a grid point).
-    pub generation: Option<i64>,
-    /// A candidate's number in its generation (NULL for a grid point).
-    pub candidate: Option<i64>,
+    /// Its grid point or candidate.
+    #[sqlx(flatten)]
+    pub place: PlaceRow,
     /// Velocity-tracking weight.
     pub w1: f64,
     /// log10 of the torque weight.
@@ -123,7 +146,7 @@ impl TryFrom<CellRow> for CellRecord {
             sweep_id: SweepId(r.sweep_id),
             terrain_index: r.terrain_index as u32,
             terrain: r.terrain,
-            place: Place::from_columns(r.w1_index, r.w2_index, r.generation, r.candidate)?,
+            place: r.place.place()?,
             w1: r.w1,
             w2: r.w2,
             seed: r.seed as u64,
