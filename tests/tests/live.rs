@@ -44,30 +44,6 @@ fn browse(browser: &str, url: &str, extra: &[&str]) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
-/// A plain GET (with `Authorization: Bearer` when `token` is given): the status line and
-/// the body.
-fn http_get(addr: &str, path: &str, token: Option<&str>) -> (String, Vec<u8>) {
-    let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-    let auth = token.map_or(String::new(), |t| format!("Authorization: Bearer {t}\r\n"));
-    write!(
-        s,
-        "GET {path} HTTP/1.1\r\nHost: {addr}\r\n{auth}Connection: close\r\n\r\n"
-    )
-    .unwrap();
-    let mut raw = Vec::new();
-    let _ = s.read_to_end(&mut raw);
-    let split = raw
-        .windows(4)
-        .position(|w| w == b"\r\n\r\n")
-        .map_or(raw.len(), |i| i + 4);
-    let head = String::from_utf8_lossy(&raw[..split]).into_owned();
-    (
-        head.lines().next().unwrap_or("").to_string(),
-        raw[split..].to_vec(),
-    )
-}
-
 fn status_of(addr: &str, path: &str) -> String {
     http_get(addr, path, None).0
 }

@@ -175,7 +175,7 @@ async fn asha_continues_the_best_cell_from_its_rung_and_stops_the_rest() {
 async fn asha_survives_a_killed_worker_and_a_restarted_coordinator_between_rungs() {
     let _g = heavy();
     let tmp = tempfile::tempdir().unwrap();
-    let args = ["--lease-seconds", "2"];
+    let args = ["--lease-seconds", "2", "--http", "127.0.0.1:0"];
     let mut coord = Coord::start(tmp.path(), "127.0.0.1:0", &args).await;
     let addr = coord.addr.clone();
     let mut c = coord.sweeps().await;
@@ -253,7 +253,7 @@ async fn asha_survives_a_killed_worker_and_a_restarted_coordinator_between_rungs
 /// the temp dir, the live coordinator, the sweep as created and as finished.
 async fn run_across_a_restart(spec: &str) -> (tempfile::TempDir, Coord, pb::Sweep, pb::Sweep) {
     let tmp = tempfile::tempdir().unwrap();
-    let args = ["--lease-seconds", "2"];
+    let args = ["--lease-seconds", "2", "--http", "127.0.0.1:0"];
     let mut coord = Coord::start(tmp.path(), "127.0.0.1:0", &args).await;
     let addr = coord.addr.clone();
     let mut c = coord.sweeps().await;
@@ -358,6 +358,33 @@ async fn cmaes_trains_generation_after_generation_across_a_restart() {
     assert!(
         text.lines().any(|l| l.starts_with(&row) && l.contains('*')),
         "no marked row for generation {g} candidate {k}: {text}"
+    );
+    // The live API lays the candidates out by generation and number, never as grid points.
+    let http = std::fs::read_to_string(coord.data.join("http.addr")).unwrap();
+    let (status, body) = http_get(
+        http.trim(),
+        &format!("/api/sweeps/{}", sweep.sweep_id),
+        None,
+    );
+    assert!(status.contains("200"), "{status}");
+    let api: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(api["layout"], "candidates");
+    let mut places: Vec<(i64, i64)> = api["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| {
+            assert!(c["w1_index"].is_null() && c["w2_index"].is_null(), "{c}");
+            (
+                c["generation"].as_i64().unwrap(),
+                c["candidate"].as_i64().unwrap(),
+            )
+        })
+        .collect();
+    places.sort_unstable();
+    assert_eq!(
+        places,
+        keys.iter().map(|&(g, k)| (g, k)).collect::<Vec<_>>()
     );
 }
 

@@ -6,6 +6,7 @@
 use gaitsweep_core::pb::{
     self, sweep_service_client::SweepServiceClient, worker_service_client::WorkerServiceClient,
 };
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::Mutex;
@@ -303,4 +304,28 @@ pub fn python() -> PathBuf {
         py.display()
     );
     py
+}
+
+/// A plain GET (with `Authorization: Bearer` when `token` is given): the status line and
+/// the body.
+pub fn http_get(addr: &str, path: &str, token: Option<&str>) -> (String, Vec<u8>) {
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    let auth = token.map_or(String::new(), |t| format!("Authorization: Bearer {t}\r\n"));
+    write!(
+        s,
+        "GET {path} HTTP/1.1\r\nHost: {addr}\r\n{auth}Connection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut raw = Vec::new();
+    let _ = s.read_to_end(&mut raw);
+    let split = raw
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .map_or(raw.len(), |i| i + 4);
+    let head = String::from_utf8_lossy(&raw[..split]).into_owned();
+    (
+        head.lines().next().unwrap_or("").to_string(),
+        raw[split..].to_vec(),
+    )
 }
