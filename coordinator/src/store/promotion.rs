@@ -79,9 +79,9 @@ async fn promote_across_terrains(
     Ok(())
 }
 
-/// Promotes the grid point (or candidate) of `cell` once all its replicates are closed: ranked by the mean
-/// of their scores, represented by its best replicate (whose checkpoint is the model). With
-/// one replicate this is the cell and its score.
+/// Promotes the grid point (or candidate) of `cell` once all its replicates are closed:
+/// ranked by the mean of their scores, represented by its best replicate (whose checkpoint
+/// is the model). With one replicate this is the cell and its score.
 pub(super) async fn promote_point(
     tx: &mut Tx,
     cell: &CellRecord,
