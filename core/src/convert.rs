@@ -124,15 +124,11 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
 }
 
 /// The name of a wire spec's search method, as a spec writes it ("grid" when unset).
-pub fn search_method(spec: &pb::SweepSpec) -> &'static str {
-    use pb::search::Method;
-    match spec.search.as_ref().and_then(|s| s.method.as_ref()) {
-        None | Some(Method::Grid(_)) => "grid",
-        Some(Method::Asha(_)) => "asha",
-        Some(Method::Cmaes(_)) => "cmaes",
-        Some(Method::Genetic(_)) => "genetic",
-        Some(Method::Random(_)) => "random",
-    }
+pub fn search_method(spec: &pb::SweepSpec) -> String {
+    spec.search
+        .clone()
+        .and_then(search_from_wire)
+        .map_or_else(|| "grid".to_string(), |s| s.method)
 }
 
 /// A user's `[search]` as the wire's `oneof`: each method's own options (an unset one 0);

@@ -84,12 +84,12 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         .map(|r| gaitsweep_search::describe(&r));
     let title = search
         .as_ref()
-        .map_or(gaitsweep_core::convert::search_method(&spec), |d| d.title);
+        .map_or_else(|_| gaitsweep_core::convert::search_method(&spec), |d| d.title.to_string());
     let evolutionary = search
         .as_ref()
         .is_ok_and(|d| d.layout == gaitsweep_search::Layout::Candidates);
     if evolutionary {
-        render_candidates(&mut o, title, cells, replicates, best_point);
+        render_candidates(&mut o, &title, cells, replicates, best_point);
     }
     for (ti, terrain) in spec.terrains.iter().enumerate().filter(|_| !evolutionary) {
         let point = |i: usize, j: usize| -> Vec<&pb::Cell> {

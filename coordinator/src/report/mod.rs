@@ -20,7 +20,7 @@ pub mod tensorboard;
 mod text;
 
 use crate::store::queries::{self, EvalKinds};
-use crate::store::rows::{CellRow, CELL_COLUMNS};
+use crate::store::rows::{CellRow, CELL_COLUMNS, CELL_ORDER};
 use anyhow::Context;
 use gaitsweep_core::records::CellRecord;
 use gaitsweep_core::{Place, SweepId};
@@ -288,7 +288,7 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> 
          LEFT JOIN checkpoints fk ON fk.sha256 = s.final_checkpoint_sha256 \
          LEFT JOIN checkpoints lk ON lk.sha256 = c.last_checkpoint_sha256 \
          WHERE c.sweep_id = $1 \
-         ORDER BY c.terrain_index, c.w1_index, c.w2_index, c.generation, c.candidate, c.replicate"
+         ORDER BY {CELL_ORDER}"
     );
     for r in sqlx::query(&sql).bind(sweep).fetch_all(db).await? {
         let checkpoint: Option<String> = r.try_get("ckpt_path")?;

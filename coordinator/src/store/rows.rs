@@ -129,6 +129,12 @@ pub struct CellRow {
     pub score: ScoreRow,
 }
 
+/// The order cells are listed in everywhere (`show`, the report, the live API): by terrain,
+/// then by place (a grid point's indices or a candidate's generation and number), then by
+/// replicate; one of the two place pairs is always NULL, so both can be named.
+pub const CELL_ORDER: &str =
+    "c.terrain_index, c.w1_index, c.w2_index, c.generation, c.candidate, c.replicate";
+
 /// The columns [`CellRow`] reads: `cells c LEFT JOIN scores s`.
 pub const CELL_COLUMNS: &str =
     "c.id, c.sweep_id, c.terrain_index, c.terrain, c.w1_index, c.w2_index, c.generation, \

@@ -10,7 +10,7 @@ use super::backend::{writer_pool, Backend, DatabaseUrl};
 use super::progress_writer::{ProgressWriter, WriteSnapshot};
 use super::promotion::{finish_if_done, promote_point};
 use super::queries;
-use super::rows::{CELL_COLUMNS, SWEEP_COLUMNS};
+use super::rows::{CELL_COLUMNS, CELL_ORDER, SWEEP_COLUMNS};
 use super::score_sql::ScoreTable;
 use super::search::{self, rung_result};
 use super::tx::{
@@ -211,7 +211,7 @@ impl Store for SqlStore {
         self.sweep(id).await?;
         let sql = format!(
             "SELECT {CELL_COLUMNS} FROM cells c LEFT JOIN scores s ON s.cell_id = c.id WHERE c.sweep_id = $1 \
-             ORDER BY c.terrain_index, c.w1_index, c.w2_index, c.generation, c.candidate, c.replicate"
+             ORDER BY {CELL_ORDER}"
         );
         let mut cells = sqlx::query(&sql)
             .bind(id.0)
