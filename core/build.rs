@@ -14,7 +14,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     tonic_prost_build::configure()
         .file_descriptor_set_path(out_dir.join("gaitsweep_v1_descriptor.bin"))
         .btree_map(".")
-        .compile_protos(&files, &[root.clone()])?;
+        .compile_protos(&files, std::slice::from_ref(&root))?;
     // Each file, not the directory: cargo did not rerun this script when a .proto in
     // `root` changed (a stale `pb` after a proto edit).
     for f in &files {

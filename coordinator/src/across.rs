@@ -49,6 +49,9 @@ pub struct AcrossTerrains {
     pub cell: CellId,
 }
 
+/// A point's scored replicates on one terrain.
+type Replicates = Vec<(CellId, f64)>;
+
 /// The point best across `terrains` terrains, or `None` when fewer than two terrains,
 /// no point is scored on every terrain, or a terrain's best mean is not positive (the
 /// ratio would not rank: a user reads the per-terrain promotions instead).
@@ -57,7 +60,7 @@ pub fn best_across(cells: &[ScoredCell], terrains: usize) -> Option<AcrossTerrai
         return None;
     }
     // (w1, w2) -> terrain -> replicates.
-    let mut points: BTreeMap<(u32, u32), BTreeMap<usize, Vec<(CellId, f64)>>> = BTreeMap::new();
+    let mut points: BTreeMap<(u32, u32), BTreeMap<usize, Replicates>> = BTreeMap::new();
     for c in cells
         .iter()
         .filter(|c| c.score.is_finite() && c.terrain < terrains)

@@ -8,6 +8,9 @@
 /// sampler's own dead zone (speeds under 0.2 m/s are commanded as 0).
 pub const STANDING_SPEED: f64 = 0.2;
 
+/// A grid of values `[w1_index][w2_index]`, `None` where a point has no value.
+pub type GridValues = Vec<Vec<Option<f64>>>;
+
 /// A grid's shape.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Shape {
@@ -95,7 +98,7 @@ mod tests {
         f: impl Fn(usize, usize) -> Option<f64>,
         rows: usize,
         cols: usize,
-    ) -> Vec<Vec<Option<f64>>> {
+    ) -> GridValues {
         (0..rows)
             .map(|i| (0..cols).map(|j| f(i, j)).collect())
             .collect()

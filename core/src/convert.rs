@@ -126,7 +126,6 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
 /// The name of a wire spec's search method, as a spec writes it ("grid" when unset).
 pub fn search_method(spec: &pb::SweepSpec) -> String {
     spec.search
-        .clone()
         .and_then(search_from_wire)
         .map_or_else(|| "grid".to_string(), |s| s.method)
 }

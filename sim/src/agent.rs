@@ -206,7 +206,7 @@ impl Agent {
             return;
         }
         let every = (d.push_interval_s / p.policy_dt()).round().max(1.0) as u32;
-        if self.step_in_episode % every == 0 {
+        if self.step_in_episode.is_multiple_of(every) {
             let m = d.max_push_vel_xy;
             let vx = self.rng.random_range(-m..=m);
             let vy = self.rng.random_range(-m..=m);
@@ -372,7 +372,7 @@ impl Agent {
         self.last_actions = self.actions;
 
         let resample = (p.commands.resample_seconds / dt).round().max(1.0) as u32;
-        if self.step_in_episode % resample == 0 {
+        if self.step_in_episode.is_multiple_of(resample) {
             self.sample_command(p);
         }
         self.update_yaw_command(p);

@@ -259,7 +259,7 @@ pub fn generate(kind: TerrainKind, level: u8, variant: u32) -> Tile {
         return Tile::new(TerrainKind::Mixed, level, t.grid);
     }
     let p = LevelParams::at(level);
-    let sign = if variant % 2 == 0 { 1.0 } else { -1.0 };
+    let sign = if variant.is_multiple_of(2) { 1.0 } else { -1.0 };
     let grid = match kind {
         TerrainKind::Flat => None,
         TerrainKind::Mixed => unreachable!("mixed tiles are made of the other kinds above"),

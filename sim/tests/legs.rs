@@ -204,8 +204,8 @@ fn a_quadruped_with_other_names_and_shapes_loads_with_only_a_preset() {
             r#"<inertial><origin xyz="0 0 -0.1" rpy="0 0 0"/><mass value="{m}"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.005"/></inertial>"#
         )
     };
-    let mut urdf = format!(
-        r#"<?xml version="1.0"?><robot name="other"><link name="trunk"><inertial><origin xyz="0 0 0" rpy="0 0 0"/><mass value="8"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.3" iyz="0" izz="0.3"/></inertial><collision><geometry><box size="0.6 0.3 0.15"/></geometry></collision></link>"#
+    let mut urdf = String::from(
+        r#"<?xml version="1.0"?><robot name="other"><link name="trunk"><inertial><origin xyz="0 0 0" rpy="0 0 0"/><mass value="8"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.3" iyz="0" izz="0.3"/></inertial><collision><geometry><box size="0.6 0.3 0.15"/></geometry></collision></link>"#,
     );
     let mut joints = Vec::new();
     let mut feet = Vec::new();

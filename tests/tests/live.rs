@@ -54,7 +54,7 @@ async fn the_live_page_shows_a_finished_sweep_and_refuses_a_missing_token() {
         "headless chromium is needed for this test: scripts/test.sh installs Debian's `chromium` \
          (apt-get install chromium)",
     );
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let coord = Coord::start(
         tmp.path(),

@@ -51,7 +51,7 @@ fn report(coord: &Coord, sweep: i64, out: &std::path::Path) -> String {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn asha_continues_the_best_cell_from_its_rung_and_stops_the_rest() {
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
     let mut c = coord.sweeps().await;
@@ -173,7 +173,7 @@ async fn asha_continues_the_best_cell_from_its_rung_and_stops_the_rest() {
 /// decision twice.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn asha_survives_a_killed_worker_and_a_restarted_coordinator_between_rungs() {
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let args = ["--lease-seconds", "2", "--http", "127.0.0.1:0"];
     let mut coord = Coord::start(tmp.path(), "127.0.0.1:0", &args).await;
@@ -292,7 +292,7 @@ async fn run_across_a_restart(spec: &str) -> (tempfile::TempDir, Coord, pb::Swee
 /// nothing and ask for no generation twice; the best candidate is promoted.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cmaes_trains_generation_after_generation_across_a_restart() {
-    let _g = heavy();
+    let _g = heavy().await;
     let spec = "name = \"cmaes\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\n\
                 w1 = { min = 2.0, max = 12.0, count = 2 }\nw2 = { values = [-10.0, -2.0] }\n\
                 agents_per_cell = 4\nepochs = 10\ncheckpoint_every = 1\nseed = 5\n\
@@ -396,7 +396,7 @@ async fn cmaes_trains_generation_after_generation_across_a_restart() {
 /// report draws the candidates.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn genetic_breeds_grid_points_generation_after_generation_across_a_restart() {
-    let _g = heavy();
+    let _g = heavy().await;
     let spec = "name = \"genetic\"\nrobot = \"anymal\"\nterrains = [\"flat\"]\n\
                 w1 = { min = 2.0, max = 12.0, count = 2 }\nw2 = { values = [-10.0, -6.0, -2.0] }\n\
                 agents_per_cell = 4\nepochs = 10\ncheckpoint_every = 1\nseed = 9\n\
@@ -475,7 +475,7 @@ async fn genetic_breeds_grid_points_generation_after_generation_across_a_restart
 /// is promoted; `show` and the report lay it out as a grid with the undrawn points empty.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn random_search_trains_the_points_its_seed_draws_and_promotes_the_best() {
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
     let mut c = coord.sweeps().await;
@@ -539,7 +539,7 @@ async fn random_search_trains_the_points_its_seed_draws_and_promotes_the_best() 
 /// exports as a search-bench recording, and the bench replays it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_recorded_grid_replays_in_the_search_bench() {
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
     let mut c = coord.sweeps().await;

@@ -188,7 +188,7 @@ fn read(path: &Path) -> String {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sbatch_workers_give_cells_back_on_scancel_and_the_sweep_completes() {
-    let _g = heavy();
+    let _g = heavy().await;
     let Some(mut cluster) = Cluster::start() else {
         return;
     };

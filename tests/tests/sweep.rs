@@ -18,7 +18,7 @@ const LONG_EPOCHS: u32 = 40;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_workers_finish_a_2x2_sweep() {
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
     let mut c = coord.sweeps().await;
@@ -218,7 +218,7 @@ async fn killed_worker_cell_resumes_on_another_worker_on_postgres() {
 }
 
 async fn killed_worker_cell_resumes(on: Db) {
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let database = on.fresh().await;
     let coord = Coord::start_on(
@@ -296,7 +296,7 @@ async fn killed_worker_cell_resumes(on: Db) {
 /// back: it is queued at once, and with `--max-attempts 1` it still finishes.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn stopped_worker_gives_its_cell_back_at_once() {
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let coord = Coord::start(
         tmp.path(),
@@ -379,7 +379,7 @@ async fn coordinator_killed_and_restarted_mid_sweep_completes_on_postgres() {
 }
 
 async fn coordinator_killed_and_restarted(on: Db) {
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let database = on.fresh().await;
     let mut coord = Coord::start_on(tmp.path(), "127.0.0.1:0", database.as_deref(), &[]).await;
@@ -475,7 +475,7 @@ async fn coordinator_killed_and_restarted(on: Db) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn worker_registers_again_with_a_coordinator_that_lost_its_database() {
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     for d in ["old", "new"] {
         std::fs::create_dir_all(tmp.path().join(d)).unwrap();
@@ -501,7 +501,7 @@ async fn worker_registers_again_with_a_coordinator_that_lost_its_database() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn replicates_train_each_point_k_times_and_promote_the_best_mean() {
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
     let mut c = coord.sweeps().await;

@@ -20,7 +20,7 @@ for tag in acc.Tags()["scalars"]:
 
 #[test]
 fn worker_train_writes_tensorboard_scalars_equal_to_its_metrics() {
-    let _heavy = common::heavy();
+    let _heavy = common::heavy_blocking();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     let status = Command::new(common::bin("worker"))

@@ -14,7 +14,7 @@ const SWEEP_TIMEOUT: Duration = Duration::from_secs(600);
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_two_terrain_sweep_scores_every_level_and_promotes_the_point_best_across_terrains() {
-    let _g = heavy();
+    let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
     let mut c = coord.sweeps().await;

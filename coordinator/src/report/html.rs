@@ -31,9 +31,9 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
     };
     let fig = |o: &mut String, stem: &str, alt: &str, class: &str| {
         if have(&format!("{stem}.png")) {
-            let _ = write!(
+            let _ = writeln!(
                 o,
-                "<figure class=\"{class}\"><a href=\"{stem}.svg\"><img src=\"{stem}.png\" alt=\"{alt}\"></a><figcaption>{alt} (<a href=\"{stem}.svg\">SVG</a>)</figcaption></figure>\n",
+                "<figure class=\"{class}\"><a href=\"{stem}.svg\"><img src=\"{stem}.png\" alt=\"{alt}\"></a><figcaption>{alt} (<a href=\"{stem}.svg\">SVG</a>)</figcaption></figure>",
                 alt = esc(alt)
             );
         }
@@ -79,11 +79,11 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
     match promoted {
         Some(c) => {
             let s = c.score.clone().unwrap_or_default();
-            let _ = write!(
+            let _ = writeln!(
                 o,
                 "<p>Cell <b>{}</b> on <b>{}</b>: w1 = <b>{}</b>, w2 = <b>{}</b> (torque weight 10^{}), gait score <b>{}</b> \
                  (track {}, effort {}, tilt {}, progress {}; fall rate {}, |v_cmd \u{2212} v| {} m/s). \
-                 Download it with <code>coordinator fetch-best {}</code>.</p>\n",
+                 Download it with <code>coordinator fetch-best {}</code>.</p>",
                 c.id,
                 esc(&c.terrain),
                 fmt_w(c.w1),
@@ -150,10 +150,10 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
     }
     match gif {
         GifStatus::Written(f) => {
-            let _ = write!(
+            let _ = writeln!(
                 o,
                 "<figure><img src=\"{f}\" alt=\"gait of the promoted policy\"><figcaption>The promoted policy walking on its terrain \
-                 (deterministic actions, one robot; body red, legs blue, feet black).</figcaption></figure>\n",
+                 (deterministic actions, one robot; body red, legs blue, feet black).</figcaption></figure>",
                 f = esc(f)
             );
         }

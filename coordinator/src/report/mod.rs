@@ -20,6 +20,7 @@ pub mod tensorboard;
 mod text;
 
 use crate::store::queries::{self, EvalKinds};
+use crate::shape::GridValues;
 use crate::store::rows::{CellRow, CELL_COLUMNS, CELL_ORDER};
 use anyhow::Context;
 use gaitsweep_core::records::CellRecord;
@@ -205,7 +206,7 @@ impl ReportData {
         &self,
         t: usize,
         f: impl Fn(&ReportCell) -> Option<f64>,
-    ) -> Vec<Vec<Option<f64>>> {
+    ) -> GridValues {
         let mut sum = vec![vec![(0.0, 0usize); self.w2_values.len()]; self.w1_values.len()];
         for c in self.cells_of(t) {
             if let (Some(v), Some(slot)) =
@@ -227,7 +228,7 @@ impl ReportData {
     /// Cells `(w1_index, w2_index)` whose score is in the top quartile of their terrain's
     /// scored cells on every terrain, and per grid position the number of terrains where
     /// it is in the top quartile.
-    pub fn overlap(&self) -> (Vec<(usize, usize)>, Vec<Vec<Option<f64>>>) {
+    pub fn overlap(&self) -> (Vec<(usize, usize)>, GridValues) {
         let mut count = vec![vec![Some(0.0); self.w2_values.len()]; self.w1_values.len()];
         for t in 0..self.terrains.len() {
             let mut v: Vec<f64> = self.cells_of(t).filter_map(|c| c.value()).collect();

@@ -9,16 +9,22 @@ use gaitsweep_core::pb::{
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::Mutex;
 use std::time::{Duration, Instant};
 use tonic::transport::Channel;
 
-/// Serialises the tests that train (two cores only).
-pub static HEAVY: Mutex<()> = Mutex::new(());
+/// Serialises the tests that train (two cores only). Each test runs on its own runtime, so
+/// the lock is tokio's, which any runtime can await and which an earlier test's panic does
+/// not poison.
+pub static HEAVY: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 
-/// Takes the heavy-test lock even if an earlier test panicked while holding it.
-pub fn heavy() -> std::sync::MutexGuard<'static, ()> {
-    HEAVY.lock().unwrap_or_else(|e| e.into_inner())
+/// Takes the heavy-test lock in an async test.
+pub async fn heavy() -> tokio::sync::MutexGuard<'static, ()> {
+    HEAVY.lock().await
+}
+
+/// Takes the heavy-test lock in a test without a runtime.
+pub fn heavy_blocking() -> tokio::sync::MutexGuard<'static, ()> {
+    HEAVY.blocking_lock()
 }
 
 /// A binary built next to this test executable (target/release/NAME).

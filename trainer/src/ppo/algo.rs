@@ -381,7 +381,7 @@ impl Ppo {
                 if self.std_scheduled {
                     // An annealed std is not a parameter: undo the optimiser's step on it.
                     tch::no_grad(|| {
-                        let _ = self.model.log_std.copy_(&old_log_std);
+                        self.model.log_std.copy_(&old_log_std);
                     });
                 }
 

@@ -11,7 +11,7 @@ pub(super) struct Curves<'a> {
 fn line_color(k: usize, n: usize) -> RGBColor {
     // Evenly spread hues, alternating lightness so that neighbours differ.
     let h = (k as f64 / n.max(1) as f64) * 0.85;
-    let l = if k % 2 == 0 { 0.42 } else { 0.58 };
+    let l = if k.is_multiple_of(2) { 0.42 } else { 0.58 };
     let c = HSLColor(h, 0.75, l).to_rgba();
     RGBColor(c.0, c.1, c.2)
 }

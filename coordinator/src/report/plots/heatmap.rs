@@ -17,7 +17,7 @@ pub(super) struct Heatmap<'a> {
     pub(super) w1: &'a [f64],
     pub(super) w2: &'a [f64],
     /// `[w1_index][w2_index]`
-    pub(super) values: Vec<Vec<Option<f64>>>,
+    pub(super) values: GridValues,
     /// Text for cells without a value (their state).
     pub(super) notes: Vec<Vec<String>>,
     pub(super) better: Better,

@@ -2,6 +2,7 @@
 //! set in an embedded DejaVu Sans subset (assets/), so nothing depends on system fonts.
 
 use super::{slug, ReportCell, ReportData};
+use crate::shape::GridValues;
 use anyhow::Context;
 use plotters::coord::ranged1d::SegmentValue;
 use plotters::coord::Shift;

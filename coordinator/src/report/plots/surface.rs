@@ -7,7 +7,7 @@ pub(super) struct Surface<'a> {
     pub(super) subtitle: String,
     pub(super) w1: &'a [f64],
     pub(super) w2: &'a [f64],
-    pub(super) values: Vec<Vec<Option<f64>>>,
+    pub(super) values: GridValues,
 }
 
 impl Figure for Surface<'_> {
