@@ -73,6 +73,14 @@ pub enum Error {
         /// Why it failed, and what to check.
         message: String,
     },
+    /// A report's figure could not be drawn or written.
+    #[error("{what}: {message}")]
+    Plot {
+        /// What was being drawn or written, and where.
+        what: String,
+        /// The plotting library's error.
+        message: String,
+    },
     /// A request is malformed.
     #[error("bad request: {0}")]
     BadRequest(String),
@@ -143,6 +151,7 @@ impl From<Error> for tonic::Status {
             | Error::OpenDb { .. }
             | Error::Io { .. }
             | Error::Write { .. }
+            | Error::Plot { .. }
             | Error::Json(_) => {
                 tracing::error!(error = %msg, "internal error");
                 Status::internal(msg)

@@ -103,8 +103,8 @@ fn main() -> anyhow::Result<()> {
                 gaitsweep_coordinator::serve::serve(cfg, shutdown).await?;
                 Ok(())
             }
-            Cmd::Report(a) => gaitsweep_coordinator::report::run(a).await,
-            Cmd::Tensorboard(a) => gaitsweep_coordinator::report::tensorboard::run(a).await,
+            Cmd::Report(a) => Ok(gaitsweep_coordinator::report::run(a).await?),
+            Cmd::Tensorboard(a) => Ok(gaitsweep_coordinator::report::tensorboard::run(a).await?),
             Cmd::Client(c) => cli::run(c).await,
         }
     })

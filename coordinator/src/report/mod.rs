@@ -22,7 +22,8 @@ mod text;
 use crate::store::queries::{self, EvalKinds};
 use crate::shape::GridValues;
 use crate::store::rows::{CellRow, CELL_COLUMNS, CELL_ORDER};
-use anyhow::Context;
+use crate::error::io;
+use crate::Result;
 use gaitsweep_core::records::CellRecord;
 use gaitsweep_core::{Place, SweepId};
 use gaitsweep_model::GaitScore;
@@ -260,10 +261,8 @@ impl ReportData {
 }
 
 /// Loads everything the report of `sweep` shows.
-pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> anyhow::Result<ReportData> {
-    let row = queries::sweep_spec(db, SweepId(sweep))
-        .await
-        .with_context(|| format!("no sweep {sweep} in this database"))?;
+pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> Result<ReportData> {
+    let row = queries::sweep_spec(db, SweepId(sweep)).await?;
     let spec = row.spec;
     let search = gaitsweep_search::describe(&spec);
     let mut data = ReportData {
@@ -422,12 +421,12 @@ pub struct ReportFiles {
 
 /// Draws every picture of `data` into `out` and writes `index.html` (with `gif` as the
 /// gait section).
-pub fn write_report(data: &ReportData, out: &Path, gif: &GifStatus) -> anyhow::Result<ReportFiles> {
-    std::fs::create_dir_all(out).with_context(|| format!("create {}", out.display()))?;
+pub fn write_report(data: &ReportData, out: &Path, gif: &GifStatus) -> Result<ReportFiles> {
+    std::fs::create_dir_all(out).map_err(io(format!("create {}", out.display())))?;
     let mut files = plots::draw_all(data, out)?;
     let index = out.join("index.html");
     std::fs::write(&index, html::index(data, &files, gif))
-        .with_context(|| format!("write {}", index.display()))?;
+        .map_err(io(format!("write {}", index.display())))?;
     files.push(index);
     Ok(ReportFiles { files })
 }
@@ -478,11 +477,11 @@ pub struct ReportArgs {
 }
 
 /// Runs `coordinator report`.
-pub async fn run(a: ReportArgs) -> anyhow::Result<()> {
+pub async fn run(a: ReportArgs) -> Result<()> {
     let db = crate::store::reader::open(&a.data_dir, a.database.as_deref()).await?;
     let data = load(&db, a.sweep).await?;
     db.close().await;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("create {}", a.out.display()))?;
+    std::fs::create_dir_all(&a.out).map_err(io(format!("create {}", a.out.display())))?;
     let gif = if a.no_gif {
         GifStatus::NotMade("not rendered (--no-gif)".into())
     } else {

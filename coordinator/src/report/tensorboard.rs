@@ -2,7 +2,9 @@
 //! sweep reported, as one TensorBoard log dir with one run per cell
 //! (`<terrain>_w1=<w1>_w2=<w2>_seed=<seed>`), read from the database (read-only).
 
-use anyhow::Context;
+use crate::error::io;
+use crate::{Error, Result};
+use gaitsweep_core::SweepId;
 use gaitsweep_core::tensorboard::EventWriter;
 use sqlx::Row;
 use std::path::{Path, PathBuf};
@@ -30,16 +32,15 @@ pub fn run_name(terrain: &str, w1: f64, w2: f64, seed: u64) -> String {
 }
 
 /// Writes the log dir; returns the number of runs and of scalars written.
-pub async fn export(db: &sqlx::AnyPool, sweep: i64, out: &Path) -> anyhow::Result<(usize, usize)> {
+pub async fn export(db: &sqlx::AnyPool, sweep: i64, out: &Path) -> Result<(usize, usize)> {
     let cells =
         sqlx::query("SELECT id, terrain, w1, w2, seed FROM cells WHERE sweep_id = $1 ORDER BY id")
             .bind(sweep)
             .fetch_all(db)
             .await?;
-    anyhow::ensure!(
-        !cells.is_empty(),
-        "sweep {sweep} has no cells in this database"
-    );
+    if cells.is_empty() {
+        return Err(Error::UnknownSweep(SweepId(sweep)));
+    }
     let (mut runs, mut scalars) = (0, 0);
     for c in cells {
         let id: i64 = c.try_get("id")?;
@@ -60,7 +61,7 @@ pub async fn export(db: &sqlx::AnyPool, sweep: i64, out: &Path) -> anyhow::Resul
         }
         let dir = out.join(&name);
         let mut w = EventWriter::create(&dir)
-            .with_context(|| format!("start an event file in {}", dir.display()))?;
+            .map_err(io(format!("start an event file in {}", dir.display())))?;
         let mut epoch = None;
         let mut values: Vec<(String, f64)> = Vec::new();
         let mut flush = |w: &mut EventWriter, e: Option<u32>, v: &mut Vec<(String, f64)>| {
@@ -74,20 +75,22 @@ pub async fn export(db: &sqlx::AnyPool, sweep: i64, out: &Path) -> anyhow::Resul
         for r in rows {
             let e = r.try_get::<i64, _>("epoch")? as u32;
             if epoch != Some(e) {
-                flush(&mut w, epoch, &mut values)?;
+                flush(&mut w, epoch, &mut values)
+                    .map_err(io(format!("write {}", dir.display())))?;
                 epoch = Some(e);
             }
             values.push((r.try_get("name")?, r.try_get("value")?));
         }
-        flush(&mut w, epoch, &mut values)?;
-        w.flush()?;
+        flush(&mut w, epoch, &mut values)
+            .and_then(|()| w.flush())
+            .map_err(io(format!("write {}", dir.display())))?;
         runs += 1;
     }
     Ok((runs, scalars))
 }
 
 /// Runs `coordinator tensorboard`.
-pub async fn run(a: TensorboardArgs) -> anyhow::Result<()> {
+pub async fn run(a: TensorboardArgs) -> Result<()> {
     let dir = a.data_dir.clone().unwrap_or_default();
     let db = crate::store::reader::open(&dir, a.database.as_deref()).await?;
     let (runs, scalars) = export(&db, a.sweep, &a.out).await?;

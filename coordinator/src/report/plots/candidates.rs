@@ -2,7 +2,7 @@
 //! coloured by its score (mean over replicates), labelled with its generation; the
 //! promoted candidate is starred. Unscored candidates are grey rings.
 
-use super::{colormap, draw_header, fmt_tick, luminance, value_range, Figure, SANS};
+use super::{colormap, draw_header, fmt_tick, luminance, value_range, FigResult, Figure, SANS};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
@@ -38,7 +38,7 @@ impl Figure for Candidates {
         (1000, 760)
     }
 
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> FigResult<()>
     where
         DB::ErrorType: 'static,
     {

@@ -22,7 +22,7 @@ impl Figure for Curves<'_> {
         (1250, h.min(2000))
     }
 
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> FigResult<()>
     where
         DB::ErrorType: 'static,
     {

@@ -64,7 +64,7 @@ impl Figure for Heatmap<'_> {
         (w, h)
     }
 
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> FigResult<()>
     where
         DB::ErrorType: 'static,
     {

@@ -3,7 +3,7 @@
 
 use super::{slug, ReportCell, ReportData};
 use crate::shape::GridValues;
-use anyhow::Context;
+use crate::{Error, Result};
 use plotters::coord::ranged1d::SegmentValue;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -80,7 +80,7 @@ fn draw_header<DB: DrawingBackend>(
     title: &str,
     subtitle: &str,
     width: u32,
-) -> anyhow::Result<DrawingArea<DB, Shift>>
+) -> FigResult<DrawingArea<DB, Shift>>
 where
     DB::ErrorType: 'static,
 {
@@ -104,34 +104,59 @@ fn luminance(c: RGBColor) -> f64 {
     (0.299 * c.0 as f64 + 0.587 * c.1 as f64 + 0.114 * c.2 as f64) / 255.0
 }
 
+/// A plotting error as text: each backend has its own error type, and a figure is drawn
+/// on two (PNG and SVG).
+struct DrawError(String);
+
+impl<E: std::error::Error + Send + Sync> From<DrawingAreaErrorKind<E>> for DrawError {
+    fn from(e: DrawingAreaErrorKind<E>) -> Self {
+        DrawError(e.to_string())
+    }
+}
+
+impl std::fmt::Display for DrawError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+type FigResult<T> = std::result::Result<T, DrawError>;
+
 /// A picture that can be drawn on any backend.
 trait Figure {
     fn size(&self) -> (u32, u32);
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> FigResult<()>
     where
         DB::ErrorType: 'static;
 }
 
 /// Writes `out/stem.png` and `out/stem.svg`.
-fn save<F: Figure>(fig: &F, out: &Path, stem: &str) -> anyhow::Result<Vec<PathBuf>> {
+fn save<F: Figure>(fig: &F, out: &Path, stem: &str) -> Result<Vec<PathBuf>> {
     register_fonts();
     let png = out.join(format!("{stem}.png"));
     let svg = out.join(format!("{stem}.svg"));
     {
         let root = BitMapBackend::new(&png, fig.size()).into_drawing_area();
-        fig.draw(&root)
-            .with_context(|| format!("draw {}", png.display()))?;
+        fig.draw(&root).map_err(plot(format!("draw {}", png.display())))?;
         root.present()
-            .with_context(|| format!("write {}", png.display()))?;
+            .map_err(plot(format!("write {}", png.display())))?;
     }
     {
         let root = SVGBackend::new(&svg, fig.size()).into_drawing_area();
-        fig.draw(&root)
-            .with_context(|| format!("draw {}", svg.display()))?;
+        fig.draw(&root).map_err(plot(format!("draw {}", svg.display())))?;
         root.present()
-            .with_context(|| format!("write {}", svg.display()))?;
+            .map_err(plot(format!("write {}", svg.display())))?;
     }
     Ok(vec![png, svg])
+}
+
+/// Maps a plotting error to [`Error::Plot`] with what was being done; a figure's own
+/// [`Error::Plot`] (from [`Figure::draw`]) keeps its message.
+fn plot<E: std::fmt::Display>(what: String) -> impl FnOnce(E) -> Error {
+    move |e| Error::Plot {
+        what,
+        message: e.to_string(),
+    }
 }
 
 /// Formats a grid value for an axis (w1, w2).
@@ -233,7 +258,7 @@ fn notes(d: &ReportData, t: usize) -> Vec<Vec<String>> {
 }
 
 /// Draws every picture; returns the files written.
-pub fn draw_all(d: &ReportData, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     let who = format!(
         "sweep {} \u{201c}{}\u{201d}, robot {}",
@@ -348,7 +373,7 @@ fn draw_evolution(
     out: &Path,
     who: &str,
     bounds: ([f64; 2], [f64; 2]),
-) -> anyhow::Result<Vec<PathBuf>> {
+) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     let promoted = d.promoted().map(|c| c.place);
     for (t, terrain) in d.terrains.iter().enumerate() {

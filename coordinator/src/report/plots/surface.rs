@@ -15,7 +15,7 @@ impl Figure for Surface<'_> {
         (1000, 760)
     }
 
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> FigResult<()>
     where
         DB::ErrorType: 'static,
     {
