@@ -29,3 +29,45 @@ pub enum Error {
 
 /// Result alias of the core crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// One line for a binary to print: `e`'s message followed by each cause in its source
+/// chain that the message does not already spell out. Our errors put their cause in their
+/// own message (so logs show it), which a plain chain would repeat.
+pub fn one_line(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut line = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !line.contains(&text) {
+            line.push_str(": ");
+            line.push_str(&text);
+        }
+        cause = c.source();
+    }
+    line
+}
+
+#[cfg(test)]
+mod tests {
+    use super::one_line;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("write /x: {source}")]
+    struct Repeats {
+        source: std::io::Error,
+    }
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("upload failed")]
+    struct Hides {
+        #[source]
+        cause: std::io::Error,
+    }
+
+    #[test]
+    fn a_cause_is_printed_once_whether_or_not_the_message_spells_it_out() {
+        let io = || std::io::Error::other("disk full");
+        assert_eq!(one_line(&Repeats { source: io() }), "write /x: disk full");
+        assert_eq!(one_line(&Hides { cause: io() }), "upload failed: disk full");
+    }
+}
