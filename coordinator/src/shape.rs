@@ -94,11 +94,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn grid(
-        f: impl Fn(usize, usize) -> Option<f64>,
-        rows: usize,
-        cols: usize,
-    ) -> GridValues {
+    fn grid(f: impl Fn(usize, usize) -> Option<f64>, rows: usize, cols: usize) -> GridValues {
         (0..rows)
             .map(|i| (0..cols).map(|j| f(i, j)).collect())
             .collect()

@@ -47,6 +47,19 @@ pub fn one_line(e: &(dyn std::error::Error + 'static)) -> String {
     line
 }
 
+/// A binary's exit: success, or its error printed on stderr as [`one_line`] and exit code 1.
+pub fn exit<E: AsRef<dyn std::error::Error + 'static>>(
+    r: std::result::Result<(), E>,
+) -> std::process::ExitCode {
+    match r {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", one_line(e.as_ref()));
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::one_line;

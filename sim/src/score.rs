@@ -236,9 +236,12 @@ mod tests {
             a
         };
         let (tracker, runner) = (run(0.5), run(2.0));
-        let eq4 = |r: &ScoreAccumulator| summarize(std::slice::from_ref(r), 25.0, 1000, ScoreVariant::Eq4);
-        let bounded =
-            |r: &ScoreAccumulator| summarize(std::slice::from_ref(r), 25.0, 1000, ScoreVariant::Bounded);
+        let eq4 = |r: &ScoreAccumulator| {
+            summarize(std::slice::from_ref(r), 25.0, 1000, ScoreVariant::Eq4)
+        };
+        let bounded = |r: &ScoreAccumulator| {
+            summarize(std::slice::from_ref(r), 25.0, 1000, ScoreVariant::Bounded)
+        };
         assert!(
             eq4(&runner).score > eq4(&tracker).score,
             "{} vs {}",

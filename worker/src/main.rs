@@ -35,13 +35,7 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
-    match run() {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {}", gaitsweep_core::error::one_line(e.as_ref()));
-            std::process::ExitCode::FAILURE
-        }
-    }
+    gaitsweep_core::error::exit(run())
 }
 
 fn run() -> anyhow::Result<()> {

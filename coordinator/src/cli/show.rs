@@ -82,9 +82,10 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
     // (a newer coordinator's) is shown as a grid under its method's name.
     let search = gaitsweep_core::convert::resolved_from_wire(spec.clone())
         .map(|r| gaitsweep_search::describe(&r));
-    let title = search
-        .as_ref()
-        .map_or_else(|_| gaitsweep_core::convert::search_method(&spec), |d| d.title.to_string());
+    let title = search.as_ref().map_or_else(
+        |_| gaitsweep_core::convert::search_method(&spec),
+        |d| d.title.to_string(),
+    );
     let evolutionary = search
         .as_ref()
         .is_ok_and(|d| d.layout == gaitsweep_search::Layout::Candidates);

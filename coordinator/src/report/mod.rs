@@ -19,10 +19,10 @@ mod plots;
 pub mod tensorboard;
 mod text;
 
-use crate::store::queries::{self, EvalKinds};
-use crate::shape::GridValues;
-use crate::store::rows::{CellRow, CELL_COLUMNS, CELL_ORDER};
 use crate::error::io;
+use crate::shape::GridValues;
+use crate::store::queries::{self, EvalKinds};
+use crate::store::rows::{CellRow, CELL_COLUMNS, CELL_ORDER};
 use crate::Result;
 use gaitsweep_core::records::CellRecord;
 use gaitsweep_core::{Place, SweepId};
@@ -203,11 +203,7 @@ impl ReportData {
 
     /// Grid `[w1_index][w2_index]` of terrain `t`: per grid point the mean of `f` over its
     /// replicates that have a value (`seeds = k` trains each point k times).
-    pub fn grid_mean(
-        &self,
-        t: usize,
-        f: impl Fn(&ReportCell) -> Option<f64>,
-    ) -> GridValues {
+    pub fn grid_mean(&self, t: usize, f: impl Fn(&ReportCell) -> Option<f64>) -> GridValues {
         let mut sum = vec![vec![(0.0, 0usize); self.w2_values.len()]; self.w1_values.len()];
         for c in self.cells_of(t) {
             if let (Some(v), Some(slot)) =

@@ -4,8 +4,8 @@
 
 use crate::error::io;
 use crate::{Error, Result};
-use gaitsweep_core::SweepId;
 use gaitsweep_core::tensorboard::EventWriter;
+use gaitsweep_core::SweepId;
 use sqlx::Row;
 use std::path::{Path, PathBuf};
 

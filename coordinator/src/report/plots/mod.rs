@@ -137,13 +137,15 @@ fn save<F: Figure>(fig: &F, out: &Path, stem: &str) -> Result<Vec<PathBuf>> {
     let svg = out.join(format!("{stem}.svg"));
     {
         let root = BitMapBackend::new(&png, fig.size()).into_drawing_area();
-        fig.draw(&root).map_err(plot(format!("draw {}", png.display())))?;
+        fig.draw(&root)
+            .map_err(plot(format!("draw {}", png.display())))?;
         root.present()
             .map_err(plot(format!("write {}", png.display())))?;
     }
     {
         let root = SVGBackend::new(&svg, fig.size()).into_drawing_area();
-        fig.draw(&root).map_err(plot(format!("draw {}", svg.display())))?;
+        fig.draw(&root)
+            .map_err(plot(format!("draw {}", svg.display())))?;
         root.present()
             .map_err(plot(format!("write {}", svg.display())))?;
     }
