@@ -152,8 +152,8 @@ fn save<F: Figure>(fig: &F, out: &Path, stem: &str) -> Result<Vec<PathBuf>> {
     Ok(vec![png, svg])
 }
 
-/// Maps a plotting error to [`Error::Plot`] with what was being done; a figure's own
-/// [`Error::Plot`] (from [`Figure::draw`]) keeps its message.
+/// Maps a plotting error (a figure's [`DrawError`] or a backend's own) to [`Error::Plot`]
+/// with what was being done.
 fn plot<E: std::fmt::Display>(what: String) -> impl FnOnce(E) -> Error {
     move |e| Error::Plot {
         what,
