@@ -10,6 +10,12 @@
 #
 # GAITSWEEP_RECORD_WORKERS=N (default 2) one-core workers with one slot each, at nice
 # GAITSWEEP_RECORD_NICE (default 5), so that other work on the machine goes first.
+#
+# A recording that moves between machines (README "Recording over several sittings"):
+# GAITSWEEP_RECORD_SNAPSHOT=DIR (e.g. studies/recordings/anymal, committed between sittings)
+# restores DATA_DIR from DIR when DATA_DIR has no database yet, and writes DIR back with
+# `coordinator snapshot` every GAITSWEEP_RECORD_SNAPSHOT_MINUTES (default 15) and when the
+# recording stops: the database and the checkpoints the next sitting resumes from.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 DATA="${1:?usage: scripts/record-sweep.sh DATA_DIR [SPEC]}"
@@ -19,6 +25,11 @@ cargo build --release --workspace --bins
 BIN="${CARGO_TARGET_DIR:-$PWD/target}/release"
 mkdir -p "$DATA"
 DATA="$(cd "$DATA" && pwd)"
+SNAP="${GAITSWEEP_RECORD_SNAPSHOT:-}"
+if [ -n "$SNAP" ] && [ ! -e "$DATA/gaitsweep.sqlite" ] && [ -e "$SNAP/gaitsweep.sqlite" ]; then
+  echo "restoring $DATA from the snapshot $SNAP"
+  cp -r "$SNAP/." "$DATA/"
+fi
 fresh=0
 [ -e "$DATA/gaitsweep.sqlite" ] || fresh=1
 if [ "$fresh" = 1 ] && [ -z "$SPEC" ]; then
@@ -27,6 +38,14 @@ if [ "$fresh" = 1 ] && [ -z "$SPEC" ]; then
 fi
 source scripts/procs.sh
 stop_on_exit "stopping: resume with scripts/record-sweep.sh $DATA"
+take_snapshot() {
+  [ -n "$SNAP" ] && [ -s "$DATA/sweep.id" ] || return 0
+  "$BIN/coordinator" snapshot --data-dir "$DATA" --out "$SNAP" && cp "$DATA/sweep.id" "$SNAP/sweep.id"
+}
+if [ -n "$SNAP" ]; then
+  # After the workers have given their cells back with a checkpoint (cleanup stops them).
+  trap 'cleanup; take_snapshot || echo "the final snapshot failed: run $BIN/coordinator snapshot --data-dir $DATA --out $SNAP" >&2' EXIT
+fi
 
 rm -f "$DATA/coordinator.addr"
 # Every restart expires the leases it interrupted, which counts as an attempt: a recording
@@ -45,6 +64,15 @@ if [ "$fresh" = 1 ]; then
 fi
 SWEEP=$(cat "$DATA/sweep.id")
 echo "recording sweep $SWEEP in $DATA with $WORKERS workers ($(date -u +%FT%TZ))"
+if [ -n "$SNAP" ]; then
+  # A stop waits for a snapshot under way (the trap runs after it) but not for the sleep.
+  ( trap 'exit 0' TERM
+    while true; do
+      sleep "$(( ${GAITSWEEP_RECORD_SNAPSHOT_MINUTES:-15} * 60 ))" & wait $!
+      take_snapshot || true
+    done ) &
+  pids+=($!)
+fi
 "$BIN/coordinator" watch "$SWEEP" &
 pids+=($!)
 wait $!

@@ -40,6 +40,14 @@ pub enum Error {
     /// No checkpoint has this hash.
     #[error("checkpoint {0} is not stored")]
     UnknownCheckpoint(String),
+    /// A checkpoint is listed in the database but its file is not in the data dir.
+    #[error("checkpoint {sha256} is listed but its file {path} is missing: a data dir restored from a snapshot holds only the checkpoints it resumes from and the best cells' (README, \"Recording over several sittings\"); retrain that cell for its model")]
+    CheckpointFileMissing {
+        /// The checkpoint's hash.
+        sha256: String,
+        /// Where its file should be.
+        path: String,
+    },
     /// Nothing was promoted yet.
     #[error("sweep {0} has no promoted cell yet: wait until a cell finishes")]
     NothingPromoted(SweepId),
@@ -130,6 +138,7 @@ impl From<Error> for tonic::Status {
             | Error::UnknownCell(_)
             | Error::UnknownLease(_)
             | Error::UnknownCheckpoint(_)
+            | Error::CheckpointFileMissing { .. }
             | Error::NothingPromoted(_) => Status::not_found(msg),
             Error::UnknownWorker(_) => {
                 reason::with(Status::failed_precondition(msg), reason::UNKNOWN_WORKER)

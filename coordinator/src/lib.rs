@@ -17,6 +17,7 @@ pub mod searchbench;
 pub mod serve;
 pub mod service;
 pub mod shape;
+pub mod snapshot;
 pub mod store;
 pub mod validate;
 pub mod watch;

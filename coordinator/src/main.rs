@@ -26,6 +26,9 @@ enum Cmd {
     Report(gaitsweep_coordinator::report::ReportArgs),
     /// Write every metric of a sweep's cells as a TensorBoard log dir (one run per cell).
     Tensorboard(gaitsweep_coordinator::report::tensorboard::TensorboardArgs),
+    /// Copy a SQLite data dir's database and the checkpoints a later sitting resumes from
+    /// into a snapshot dir (for a recording that moves between machines).
+    Snapshot(gaitsweep_coordinator::snapshot::SnapshotArgs),
     /// Client commands against a running coordinator.
     #[command(flatten)]
     Client(cli::ClientCmd),
@@ -109,6 +112,7 @@ fn run() -> anyhow::Result<()> {
             }
             Cmd::Report(a) => Ok(gaitsweep_coordinator::report::run(a).await?),
             Cmd::Tensorboard(a) => Ok(gaitsweep_coordinator::report::tensorboard::run(a).await?),
+            Cmd::Snapshot(a) => Ok(gaitsweep_coordinator::snapshot::run(a).await?),
             Cmd::Client(c) => cli::run(c).await,
         }
     })

@@ -105,12 +105,18 @@ impl<S: Store> Coordinator<S> {
     ) -> Result<ReceiverStream<Result<pb::CheckpointChunk, tonic::Status>>> {
         let (_, rel) = self.store.checkpoint_path(sha256).await?;
         let path = self.blobs.absolute(&rel);
-        let mut file = tokio::fs::File::open(&path)
-            .await
-            .map_err(crate::error::io(format!(
+        let mut file = match tokio::fs::File::open(&path).await {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Err(crate::Error::CheckpointFileMissing {
+                    sha256: sha256.to_string(),
+                    path: path.display().to_string(),
+                })
+            }
+            r => r.map_err(crate::error::io(format!(
                 "open checkpoint {}",
                 path.display()
-            )))?;
+            )))?,
+        };
         let (tx, rx) = mpsc::channel(4);
         tokio::spawn(async move {
             use tokio::io::AsyncReadExt;
