@@ -75,13 +75,7 @@ pub async fn snapshot(
         ));
     }
     let db = reader::open(data_dir, None).await?;
-    let kept: Vec<(String, String)> = sqlx::query_as(KEPT_SQL)
-        .bind(i64::from(keep_best))
-        .fetch_all(&db)
-        .await?;
-    let listed: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM checkpoints")
-        .fetch_one(&db)
-        .await?;
+    check_apart(&real(data_dir)?, &real(out)?)?;
     std::fs::create_dir_all(out).map_err(io(format!("create {}", out.display())))?;
     let tmp = out.join(format!("{DB_FILE}.tmp"));
     remove_if_present(&tmp)?;
@@ -93,16 +87,12 @@ pub async fn snapshot(
         .execute(&db)
         .await?;
     db.close().await;
-    if metrics_every > 1 {
-        thin_metrics(&target, metrics_every).await?;
-    }
-    let final_db = out.join(DB_FILE);
-    std::fs::rename(&tmp, &final_db).map_err(io(format!(
-        "move {} to {}",
-        tmp.display(),
-        final_db.display()
-    )))?;
-    let mut bytes = file_len(&final_db)?;
+    // What to keep is read from the copy: a checkpoint the coordinator records after the
+    // copy was taken is not one the copy resumes from.
+    let (kept, listed) = trim_copy(&target, keep_best, metrics_every).await?;
+    // The files first, the database last, the old files after it: at every moment the
+    // snapshot's database finds the checkpoints it resumes from.
+    let mut bytes = 0;
     let mut wanted = BTreeSet::new();
     for (sha, rel) in &kept {
         let rel = safe_relative(rel)?;
@@ -129,6 +119,13 @@ pub async fn snapshot(
         bytes += file_len(&dst)?;
         wanted.insert(dst);
     }
+    let final_db = out.join(DB_FILE);
+    std::fs::rename(&tmp, &final_db).map_err(io(format!(
+        "move {} to {}",
+        tmp.display(),
+        final_db.display()
+    )))?;
+    bytes += file_len(&final_db)?;
     prune(&out.join("checkpoints"), &wanted)?;
     Ok(SnapshotSummary {
         kept: kept.len(),
@@ -139,15 +136,31 @@ pub async fn snapshot(
     })
 }
 
-/// Keeps the training metrics of every `every`-th epoch and of each cell's first and last
-/// reported epoch: a snapshot is committed to a repository, and a 1,200-epoch cell's ~40
-/// metrics an epoch are ~2 MB a cell.
-async fn thin_metrics(db_file: &Path, every: u32) -> Result<()> {
+/// In the copy `db_file`: keeps the training metrics of every `every`-th epoch and of each
+/// cell's first and last reported epoch (a snapshot is committed to a repository, and a
+/// 1,200-epoch cell's ~40 metrics an epoch are ~2 MB a cell); returns the checkpoints to
+/// keep (sha256, data-dir-relative path) and how many checkpoints the copy lists.
+async fn trim_copy(
+    db_file: &Path,
+    keep_best: u32,
+    every: u32,
+) -> Result<(Vec<(String, String)>, i64)> {
     use sqlx::{ConnectOptions, Connection};
     let mut conn = sqlx::sqlite::SqliteConnectOptions::new()
         .filename(db_file)
         .connect()
         .await?;
+    let kept: Vec<(String, String)> = sqlx::query_as(KEPT_SQL)
+        .bind(i64::from(keep_best))
+        .fetch_all(&mut conn)
+        .await?;
+    let listed: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM checkpoints")
+        .fetch_one(&mut conn)
+        .await?;
+    if every == 1 {
+        conn.close().await?;
+        return Ok((kept, listed));
+    }
     sqlx::query(
         "DELETE FROM epoch_metrics WHERE epoch % $1 != 0 AND (cell_id, epoch) NOT IN ( \
            SELECT cell_id, MIN(epoch) FROM epoch_metrics GROUP BY cell_id \
@@ -158,7 +171,7 @@ async fn thin_metrics(db_file: &Path, every: u32) -> Result<()> {
     .await?;
     sqlx::query("VACUUM").execute(&mut conn).await?;
     conn.close().await?;
-    Ok(())
+    Ok((kept, listed))
 }
 
 /// Runs `coordinator snapshot`.
@@ -176,6 +189,18 @@ pub async fn run(a: SnapshotArgs) -> Result<()> {
     Ok(())
 }
 
+/// The snapshot replaces files in `out`: it must not be the data dir, nor inside it, nor hold it.
+fn check_apart(data_dir: &Path, out: &Path) -> Result<()> {
+    if out.starts_with(data_dir) || data_dir.starts_with(out) {
+        return Err(Error::BadRequest(format!(
+            "the snapshot dir {} and the data dir {} overlap: write the snapshot to a dir of its own",
+            out.display(),
+            data_dir.display()
+        )));
+    }
+    Ok(())
+}
+
 /// A stored path must stay inside the data dir.
 fn safe_relative(rel: &str) -> Result<PathBuf> {
     let p = PathBuf::from(rel);
@@ -188,6 +213,45 @@ fn safe_relative(rel: &str) -> Result<PathBuf> {
         )));
     }
     Ok(p)
+}
+
+/// `p` with its symbolic links and `..` resolved, also when it does not exist yet (its
+/// nearest existing ancestor is resolved and the rest appended).
+fn real(p: &Path) -> Result<PathBuf> {
+    use std::path::Component;
+    let mut p = absolute(p)?
+        .components()
+        .fold(PathBuf::new(), |mut acc, c| {
+            match c {
+                Component::ParentDir => {
+                    acc.pop();
+                }
+                Component::CurDir => {}
+                c => acc.push(c),
+            }
+            acc
+        });
+    if p.as_os_str().is_empty() {
+        p.push("/");
+    }
+    let mut rest = Vec::new();
+    let mut base = p.as_path();
+    loop {
+        match std::fs::canonicalize(base) {
+            Ok(mut r) => {
+                r.extend(rest.iter().rev());
+                return Ok(r);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => match base.parent() {
+                Some(parent) => {
+                    rest.push(base.file_name().unwrap_or_default().to_os_string());
+                    base = parent;
+                }
+                None => return Err(io(format!("resolve {}", p.display()))(e)),
+            },
+            Err(e) => return Err(io(format!("resolve {}", p.display()))(e)),
+        }
+    }
 }
 
 fn absolute(p: &Path) -> Result<PathBuf> {
@@ -229,4 +293,44 @@ fn prune(dir: &Path, keep: &BTreeSet<PathBuf>) -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_snapshot_dir_stays_apart_from_the_data_dir() {
+        let ok = check_apart(
+            Path::new("/w/data"),
+            Path::new("/repo/studies/recordings/a"),
+        );
+        assert!(ok.is_ok());
+        for out in ["/w/data", "/w/data/snap", "/w"] {
+            let e = check_apart(Path::new("/w/data"), Path::new(out)).unwrap_err();
+            assert!(e.to_string().contains("overlap"), "{e}");
+        }
+        // Resolved before comparing, also where the snapshot dir does not exist yet.
+        let tmp = tempfile::tempdir().unwrap();
+        let data = tmp.path().join("data");
+        std::fs::create_dir(&data).unwrap();
+        let out = real(&tmp.path().join("other/../data/new/snap")).unwrap();
+        assert_eq!(out, real(&data).unwrap().join("new/snap"));
+        assert!(check_apart(&real(&data).unwrap(), &out).is_err());
+        // A sibling whose name extends the data dir's is apart.
+        assert!(check_apart(Path::new("/w/data"), Path::new("/w/data-snap")).is_ok());
+    }
+
+    #[test]
+    fn stored_paths_stay_inside_the_data_dir() {
+        assert!(safe_relative("checkpoints/ab/abcd.safetensors").is_ok());
+        for bad in [
+            "/etc/passwd",
+            "../x",
+            "checkpoints/../../x",
+            "./checkpoints/a",
+        ] {
+            assert!(safe_relative(bad).is_err(), "{bad}");
+        }
+    }
 }
