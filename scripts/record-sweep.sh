@@ -37,7 +37,11 @@ if [ "$fresh" = 1 ] && [ -z "$SPEC" ]; then
   exit 2
 fi
 source scripts/procs.sh
-stop_on_exit "stopping: resume with scripts/record-sweep.sh $DATA"
+if [ -n "$SNAP" ]; then
+  stop_on_exit "stopping: commit $SNAP (written when the workers have stopped), then resume with GAITSWEEP_RECORD_SNAPSHOT=$SNAP scripts/record-sweep.sh $DATA"
+else
+  stop_on_exit "stopping: resume with scripts/record-sweep.sh $DATA"
+fi
 take_snapshot() {
   [ -n "$SNAP" ] && [ -s "$DATA/sweep.id" ] || return 0
   "$BIN/coordinator" snapshot --data-dir "$DATA" --out "$SNAP" && cp "$DATA/sweep.id" "$SNAP/sweep.id"

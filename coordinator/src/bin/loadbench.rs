@@ -99,7 +99,11 @@ impl Stats {
     }
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    gaitsweep_core::error::exit(start())
+}
+
+fn start() -> anyhow::Result<()> {
     let args = Args::parse();
     let rt = tokio::runtime::Runtime::new()?;
     rt.block_on(run(args))

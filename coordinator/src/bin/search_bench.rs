@@ -71,8 +71,17 @@ enum Cmd {
     },
 }
 
-#[tokio::main(flavor = "current_thread")]
-async fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    gaitsweep_core::error::exit(
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .map_err(anyhow::Error::from)
+            .and_then(|rt| rt.block_on(run())),
+    )
+}
+
+async fn run() -> anyhow::Result<()> {
     match Args::parse().cmd {
         Cmd::Export {
             data_dir,
