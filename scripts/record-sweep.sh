@@ -13,7 +13,8 @@
 #
 # A recording that moves between machines (README "Recording over several sittings"):
 # GAITSWEEP_RECORD_SNAPSHOT=DIR (e.g. studies/recordings/anymal, committed between sittings)
-# restores DATA_DIR from DIR when DATA_DIR has no database yet, and writes DIR back with
+# restores DATA_DIR from DIR when DATA_DIR has no database yet (and refuses a DATA_DIR that
+# is behind DIR), and writes DIR back with
 # `coordinator snapshot` every GAITSWEEP_RECORD_SNAPSHOT_MINUTES (default 15) and when the
 # recording stops: the database and the checkpoints the next sitting resumes from.
 set -euo pipefail
@@ -26,9 +27,22 @@ BIN="${CARGO_TARGET_DIR:-$PWD/target}/release"
 mkdir -p "$DATA"
 DATA="$(cd "$DATA" && pwd)"
 SNAP="${GAITSWEEP_RECORD_SNAPSHOT:-}"
-if [ -n "$SNAP" ] && [ ! -e "$DATA/gaitsweep.sqlite" ] && [ -e "$SNAP/gaitsweep.sqlite" ]; then
-  echo "restoring $DATA from the snapshot $SNAP"
-  cp -r "$SNAP/." "$DATA/"
+# Epochs trained over all cells of a database: how far a recording has come.
+trained() {
+  python3 -c 'import sqlite3, sys
+db = sqlite3.connect(f"file:{sys.argv[1]}?mode=ro", uri=True)
+print(db.execute("SELECT COALESCE(SUM(epochs_done), 0) FROM cells").fetchone()[0])' "$1"
+}
+if [ -n "$SNAP" ] && [ -e "$SNAP/gaitsweep.sqlite" ]; then
+  if [ ! -e "$DATA/gaitsweep.sqlite" ]; then
+    echo "restoring $DATA from the snapshot $SNAP"
+    cp -r "$SNAP/." "$DATA/"
+  elif [ "$(trained "$SNAP/gaitsweep.sqlite")" -gt "$(trained "$DATA/gaitsweep.sqlite")" ]; then
+    # A data dir left on a machine that an earlier sitting used, behind what later
+    # sittings elsewhere recorded: going on from it would overwrite their work.
+    echo "the snapshot $SNAP is ahead of $DATA ($(trained "$SNAP/gaitsweep.sqlite") epochs trained against $(trained "$DATA/gaitsweep.sqlite")): move $DATA away and run again to restore from the snapshot" >&2
+    exit 2
+  fi
 fi
 fresh=0
 [ -e "$DATA/gaitsweep.sqlite" ] || fresh=1
