@@ -197,6 +197,7 @@ async fn refusals_have_the_right_codes_and_store_nothing() {
             device: "cpu".into(),
             slots: 1,
             version: "test".into(),
+            cpu: String::new(),
         }))
         .await
         .unwrap()

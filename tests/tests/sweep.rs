@@ -50,6 +50,19 @@ async fn two_workers_finish_a_2x2_sweep() {
             .await
             .unwrap();
     assert_eq!(workers, 2, "both workers trained cells");
+    // Which CPU trained each attempt is in SQL: the same cell and seed can end differently
+    // on two CPUs.
+    let cpus: Vec<String> = sqlx::query_scalar(
+        "SELECT DISTINCT w.cpu FROM attempts a JOIN workers w ON w.id = a.worker_id",
+    )
+    .fetch_all(&db)
+    .await
+    .unwrap();
+    assert_eq!(cpus.len(), 1, "one machine, one CPU model: {cpus:?}");
+    assert!(!cpus[0].is_empty(), "workers.cpu is stored");
+    if std::env::consts::ARCH == "x86_64" {
+        assert!(cpus[0].contains(" (family "), "{cpus:?}");
+    }
     for (cell, _, sha) in &scores {
         let sha = sha.as_ref().expect("final checkpoint stored");
         let (size, path): (i64, String) =

@@ -5,6 +5,7 @@
 pub mod cli;
 pub mod daemon;
 pub mod evaluate;
+pub mod host;
 pub mod render;
 
 pub use gaitsweep_trainer::{Error, Result};

@@ -463,6 +463,7 @@ async fn worker(
             device: "cpu".into(),
             slots: 1,
             version: "loadbench".into(),
+            cpu: String::new(),
         })
         .await?
         .into_inner();

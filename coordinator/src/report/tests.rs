@@ -329,6 +329,7 @@ async fn a_sweep_stored_by_the_coordinator_is_reported() {
         device: "cpu".into(),
         slots: 1,
         version: "t".into(),
+        cpu: "test cpu".into(),
     };
     store.register_worker(&w, &info, 0).await.unwrap();
     let sweep = store.create_sweep(&spec(), 0).await.unwrap();

@@ -30,9 +30,10 @@ impl<S: Store> WorkerService for WorkerApi<S> {
             device: r.device,
             slots: r.slots,
             version: r.version,
+            cpu: r.cpu,
         };
         self.0.store.register_worker(&id, &info, now_ms()).await?;
-        tracing::info!(worker = %id, host = %info.hostname, slots = info.slots, device = %info.device, "worker registered");
+        tracing::info!(worker = %id, host = %info.hostname, slots = info.slots, device = %info.device, cpu = %info.cpu, "worker registered");
         Ok(Response::new(pb::RegisterResponse {
             worker_id: id.0,
             heartbeat_interval_ms: (self.0.limits.lease_ms / 4).max(100) as u32,

@@ -43,6 +43,8 @@ pub struct WorkerInfo {
     pub slots: u32,
     /// Worker version.
     pub version: String,
+    /// CPU model (empty if the worker did not say).
+    pub cpu: String,
 }
 
 /// A cell leased to a worker slot.

@@ -263,8 +263,8 @@ impl Store for SqlStore {
     async fn register_worker(&self, id: &WorkerId, info: &WorkerInfo, now_ms: i64) -> Result<()> {
         let mut tx = self.begin().await?;
         sqlx::query(
-            "INSERT INTO workers (id, hostname, cores, device, slots, version, registered_unix_ms, last_seen_unix_ms) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8)",
+            "INSERT INTO workers (id, hostname, cores, device, slots, version, registered_unix_ms, last_seen_unix_ms, cpu) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
         )
         .bind(&id.0)
         .bind(&info.hostname)
@@ -274,6 +274,7 @@ impl Store for SqlStore {
         .bind(&info.version)
         .bind(now_ms)
         .bind(now_ms)
+        .bind(&info.cpu)
         .execute(&mut *tx)
         .await?;
         tx.commit().await?;

@@ -85,6 +85,7 @@ async fn setup_with_slots(slots: u32) -> (tempfile::TempDir, SqlStore, WorkerId)
         device: "cpu".into(),
         slots,
         version: "t".into(),
+        cpu: "test cpu".into(),
     };
     store.register_worker(&w, &info, 0).await.unwrap();
     (dir, store, w)

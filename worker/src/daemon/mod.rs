@@ -95,6 +95,7 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
         device: args.device.clone(),
         slots: args.slots as u32,
         version: env!("CARGO_PKG_VERSION").to_string(),
+        cpu: crate::host::cpu_model(),
     };
     let reg_req = reg.clone();
     let reg = retry
