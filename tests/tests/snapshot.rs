@@ -73,16 +73,7 @@ async fn a_snapshot_resumes_the_sweep_on_a_fresh_data_dir() {
         },
     )
     .await;
-    let st = std::process::Command::new("kill")
-        .args(["-TERM", &a.child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(st.success());
-    wait_for("worker a to exit", Duration::from_secs(60), || {
-        let exited = a.child.try_wait().ok().flatten().is_some();
-        async move { exited.then_some(()) }
-    })
-    .await;
+    a.stop("worker a to exit").await;
     let (scored, promoted_final): (i64, String) = sqlx::query_as(
         "SELECT s.cell_id, s.final_checkpoint_sha256 FROM scores s JOIN promotions p ON p.cell_id = s.cell_id",
     )
@@ -123,14 +114,7 @@ async fn a_snapshot_resumes_the_sweep_on_a_fresh_data_dir() {
 
     // Snapshot while the coordinator runs, keeping no best cells but the promoted one.
     let snap = first.path().join("snap");
-    let out = std::process::Command::new(bin("coordinator"))
-        .args(["snapshot", "--data-dir"])
-        .arg(&coord.data)
-        .arg("--out")
-        .arg(&snap)
-        .args(["--keep-best", "0"])
-        .output()
-        .unwrap();
+    let out = snapshot(&coord.data, &snap);
     let said = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(
         out.status.success(),
@@ -225,15 +209,8 @@ async fn a_snapshot_resumes_the_sweep_on_a_fresh_data_dir() {
         e.message()
     );
     // A second snapshot into the same dir replaces the first one's files.
-    let kept = snap.clone();
-    let out = std::process::Command::new(bin("coordinator"))
-        .args(["snapshot", "--data-dir"])
-        .arg(&coord.data)
-        .arg("--out")
-        .arg(&kept)
-        .args(["--keep-best", "0"])
-        .output()
-        .unwrap();
+    let kept = &snap;
+    let out = snapshot(&coord.data, kept);
     assert!(
         out.status.success(),
         "{}",
@@ -247,6 +224,18 @@ async fn a_snapshot_resumes_the_sweep_on_a_fresh_data_dir() {
 }
 
 /// The final checkpoints of the sweep's latest promotions (overall and per terrain).
+/// `coordinator snapshot` of `data` into `out`, keeping no best cells but the promoted ones.
+fn snapshot(data: &Path, out: &Path) -> std::process::Output {
+    std::process::Command::new(bin("coordinator"))
+        .args(["snapshot", "--data-dir"])
+        .arg(data)
+        .arg("--out")
+        .arg(out)
+        .args(["--keep-best", "0"])
+        .output()
+        .unwrap()
+}
+
 async fn promoted_finals(db: &sqlx::AnyPool, sweep: i64) -> Vec<String> {
     sqlx::query_scalar(
         "SELECT DISTINCT s.final_checkpoint_sha256 FROM promotions p JOIN scores s ON s.cell_id = p.cell_id \

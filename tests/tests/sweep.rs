@@ -332,20 +332,7 @@ async fn stopped_worker_gives_its_cell_back_at_once() {
         }
     })
     .await;
-    let st = std::process::Command::new("kill")
-        .args(["-TERM", &a.child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(st.success());
-    wait_for(
-        "worker a to exit after SIGTERM",
-        Duration::from_secs(60),
-        || {
-            let exited = a.child.try_wait().ok().flatten().is_some();
-            async move { exited.then_some(()) }
-        },
-    )
-    .await;
+    a.stop("worker a to exit after SIGTERM").await;
     // Far sooner than the 300 s lease: the cell is back in the queue.
     let attempt: String = wait_for("the cell to be queued again", Duration::from_secs(10), || {
         let db = db.clone();

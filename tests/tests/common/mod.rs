@@ -60,6 +60,21 @@ impl Proc {
         Proc { child, log }
     }
 
+    /// SIGTERM, then a bounded wait for the process to exit (a worker finishes its epoch,
+    /// uploads a checkpoint and gives its cell back first).
+    pub async fn stop(&mut self, what: &str) {
+        let st = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(st.success());
+        wait_for(what, Duration::from_secs(60), || {
+            let exited = self.child.try_wait().ok().flatten().is_some();
+            async move { exited.then_some(()) }
+        })
+        .await;
+    }
+
     /// kill -9.
     pub fn kill(&mut self) {
         let _ = self.child.kill();
