@@ -213,11 +213,15 @@ async fn the_live_page_shows_a_finished_sweep_and_refuses_a_missing_token() {
     let worker = &workers["workers"][0];
     assert!(worker["cores"].as_i64().unwrap() >= 1, "{workers}");
     assert_eq!(worker["slots"].as_i64(), Some(1), "{workers}");
+    // The worker told its CPU model (which CPU trained a cell decides its gait).
+    assert!(!worker["cpu"].as_str().unwrap().is_empty(), "{workers}");
     let (_, cell) = http_get(&http, "/api/cells/1", Some(TOKEN));
     let cell: serde_json::Value = serde_json::from_slice(&cell).unwrap();
     let attempt = &cell["attempts"][0];
     assert!(
-        attempt["worker"].is_string() && attempt["started_unix_ms"].is_i64(),
+        attempt["worker"].is_string()
+            && attempt["cpu"].is_string()
+            && attempt["started_unix_ms"].is_i64(),
         "{cell}"
     );
 

@@ -64,13 +64,13 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
     if spec.finalists_seeds > 1 {
         let _ = writeln!(
             o,
-            "finalists: the top {} points of each terrain by their first seed get {} seeds (mean score ± 95% confidence interval / mean fall rate); the promoted point is the finalist with the best mean",
+            "finalists: the top {} points of each terrain by their first seed get {} seeds (mean score ± 95% confidence interval / mean fall rate; `n=1`: one seed scored, no interval yet); the promoted point is the finalist with the best mean",
             spec.finalists_top, spec.finalists_seeds
         );
     } else if replicates > 1 {
         let _ = writeln!(
             o,
-            "{replicates} replicates (seeds) per grid point: mean score ± 95% confidence interval / mean fall rate; points rank by the mean"
+            "{replicates} replicates (seeds) per grid point: mean score ± 95% confidence interval / mean fall rate (`n=1`: one seed scored, no interval yet); points rank by the mean"
         );
     }
     let width = if replicates > 1 { 22 } else { 16 };
@@ -167,20 +167,18 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
     }
     if s.best_cell_id != 0 {
         if let Some(b) = cells.iter().find(|c| c.cell_id == s.best_cell_id) {
-            if replicates > 1 {
-                let here: Vec<&pb::Cell> = cells
-                    .iter()
-                    .filter(|c| (c.terrain_index, place_of(c)) == (b.terrain_index, place_of(b)))
-                    .collect();
-                if let Some((st, fall)) = point_summary(&here) {
-                    let _ = writeln!(
-                        o,
-                        "\nbest (*): w1 {:.3}, w2 {:.3} on {}: mean score {:.4} ± {:.4} (95% CI, sd {:.4}, {} replicates), mean fall rate {:.1}%; its model: replicate {} (cell {}, seed {})",
-                        b.w1, b.w2, b.terrain, st.mean, st.ci95, st.sd, st.n, 100.0 * fall, b.replicate, b.cell_id, b.seed
-                    );
-                }
-            }
-            if replicates > 1 {
+            let here: Vec<&pb::Cell> = cells
+                .iter()
+                .filter(|c| (c.terrain_index, place_of(c)) == (b.terrain_index, place_of(b)))
+                .collect();
+            // A point with one scored seed has no interval: it is shown as a single run.
+            let several = point_summary(&here).filter(|(st, _)| replicates > 1 && st.n > 1);
+            if let Some((st, fall)) = several {
+                let _ = writeln!(
+                    o,
+                    "\nbest (*): w1 {:.3}, w2 {:.3} on {}: mean score {:.4} ± {:.4} (95% CI, sd {:.4}, {} replicates), mean fall rate {:.1}%; its model: replicate {} (cell {}, seed {})",
+                    b.w1, b.w2, b.terrain, st.mean, st.ci95, st.sd, st.n, 100.0 * fall, b.replicate, b.cell_id, b.seed
+                );
                 return o;
             }
             let _ = writeln!(
@@ -272,8 +270,12 @@ pub(crate) fn levels_line(s: &pb::GaitScore) -> String {
 /// or the state of its first cell while none is scored.
 pub(crate) fn point_text(here: &[&pb::Cell], replicates: u32, mark: &str) -> String {
     match (point_summary(here), here.first()) {
-        (Some((st, fall)), _) if replicates > 1 => {
+        (Some((st, fall)), _) if replicates > 1 && st.n > 1 => {
             format!("{:.3}±{:.3}/{:>3.0}%{mark}", st.mean, st.ci95, 100.0 * fall)
+        }
+        // One seed scored of several: there is no interval yet, and `±0.000` would claim one.
+        (Some((st, fall)), _) if replicates > 1 => {
+            format!("{:.3} n=1/{:>3.0}%{mark}", st.mean, 100.0 * fall)
         }
         (Some((st, fall)), _) => format!("{:.4}/{:>3.0}%{mark}", st.mean, 100.0 * fall),
         (None, Some(c)) => match here.iter().find_map(|c| c.rung_score) {
@@ -407,8 +409,41 @@ mod tests {
         let cells = [cell(1, 0, 0, 0.9), cell(3, 1, 0, 0.6), cell(4, 1, 1, 0.5)];
         let text = render_show(&sweep, &cells);
         assert!(text.contains("finalists: the top 1 points"), "{text}");
-        assert!(text.contains("0.900±0.000/ 25% "), "{text}");
+        // One seed of the point w1 = 2 is scored: no interval is claimed.
+        assert!(text.contains("0.900 n=1/ 25% "), "{text}");
+        assert!(!text.contains("±0.000"), "{text}");
         assert!(text.contains("0.550±"), "{text}");
         assert!(text.contains("/ 25%+"), "{text}");
+    }
+
+    #[test]
+    fn a_best_point_with_one_scored_seed_is_shown_as_a_single_run() {
+        // The finalists' extra seeds are not scored yet: the best point has one run.
+        let sweep = pb::Sweep {
+            sweep_id: 1,
+            spec: Some(pb::SweepSpec {
+                terrains: vec!["flat".into()],
+                seeds: 1,
+                finalists_top: 1,
+                finalists_seeds: 3,
+                ..Default::default()
+            }),
+            w1_values: vec![2.0, 8.0],
+            w2_values: vec![-6.0],
+            best_cell_id: 1,
+            ..Default::default()
+        };
+        let mut queued = cell(3, 0, 1, 0.0);
+        queued.state = pb::CellState::Queued as i32;
+        queued.score = None;
+        let cells = [cell(1, 0, 0, 0.9), cell(2, 1, 0, 0.4), queued];
+        let text = render_show(&sweep, &cells);
+        assert!(text.contains("0.900 n=1/ 25%*"), "{text}");
+        assert!(
+            text.contains("best (*): cell 1 on flat, w1 2.000, w2 -6.000, score 0.9000, fall rate 25.0%"),
+            "{text}"
+        );
+        assert!(text.contains("by level"), "{text}");
+        assert!(!text.contains("replicates), mean fall rate"), "{text}");
     }
 }

@@ -232,6 +232,7 @@ pub(crate) async fn cell(State(live): State<Live>, Path(id): Path<i64>) -> ApiRe
         i64,
         String,
         Option<String>,
+        Option<String>,
         String,
         i64,
         i64,
@@ -239,7 +240,7 @@ pub(crate) async fn cell(State(live): State<Live>, Path(id): Path<i64>) -> ApiRe
         Option<String>,
     );
     let attempts: Vec<Value> = sqlx::query_as::<_, AttemptRow>(
-        "SELECT a.id, a.worker_id, w.hostname, a.state, a.resumed_from_epoch, a.started_unix_ms, \
+        "SELECT a.id, a.worker_id, w.hostname, w.cpu, a.state, a.resumed_from_epoch, a.started_unix_ms, \
          a.ended_unix_ms, a.error FROM attempts a LEFT JOIN workers w ON w.id = a.worker_id \
          WHERE a.cell_id = $1 ORDER BY a.id",
     )
@@ -248,11 +249,12 @@ pub(crate) async fn cell(State(live): State<Live>, Path(id): Path<i64>) -> ApiRe
     .await?
     .into_iter()
     .map(
-        |(id, worker, host, state, resumed, started, ended, error)| {
+        |(id, worker, host, cpu, state, resumed, started, ended, error)| {
             json!({
                 "id": id,
                 "worker": worker,
                 "host": host,
+                "cpu": cpu.unwrap_or_default(),
                 "state": state,
                 "resumed_from_epoch": resumed,
                 "started_unix_ms": started,
@@ -306,19 +308,20 @@ pub(crate) async fn workers(State(live): State<Live>) -> ApiResult<Json<Value>> 
     {
         running.entry(w).or_default().push(c);
     }
-    let rows = sqlx::query_as::<_, (String, String, i64, String, i64, i64)>(
-        "SELECT id, hostname, cores, device, slots, last_seen_unix_ms FROM workers ORDER BY last_seen_unix_ms DESC",
+    let rows = sqlx::query_as::<_, (String, String, i64, String, String, i64, i64)>(
+        "SELECT id, hostname, cores, cpu, device, slots, last_seen_unix_ms FROM workers ORDER BY last_seen_unix_ms DESC",
     )
     .fetch_all(&live.db)
     .await?;
     let out: Vec<Value> = rows
         .into_iter()
-        .map(|(id, host, cores, device, slots, last_seen)| {
+        .map(|(id, host, cores, cpu, device, slots, last_seen)| {
             json!({
                 "cells": running.get(&id).cloned().unwrap_or_default(),
                 "id": id,
                 "host": host,
                 "cores": cores,
+                "cpu": cpu,
                 "device": device,
                 "slots": slots,
                 "last_seen_unix_ms": last_seen,
