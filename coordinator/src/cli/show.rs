@@ -440,7 +440,9 @@ mod tests {
         let text = render_show(&sweep, &cells);
         assert!(text.contains("0.900 n=1/ 25%*"), "{text}");
         assert!(
-            text.contains("best (*): cell 1 on flat, w1 2.000, w2 -6.000, score 0.9000, fall rate 25.0%"),
+            text.contains(
+                "best (*): cell 1 on flat, w1 2.000, w2 -6.000, score 0.9000, fall rate 25.0%"
+            ),
             "{text}"
         );
         assert!(text.contains("by level"), "{text}");
