@@ -188,14 +188,12 @@ fn invocations_in_command(words: &[String], source: &str, out: &mut Vec<Invocati
 /// Invocations in shell text; `first_line` numbers the text's first line in its file.
 fn shell_invocations(text: &str, file: &str, first_line: usize, out: &mut Vec<Invocation>) {
     // Number commands by the line they start on: split into logical lines first.
-    let mut line_no = first_line;
     let mut logical = String::new();
     let mut logical_start = first_line;
-    for line in text.lines() {
+    for (line_no, line) in (first_line..).zip(text.lines()) {
         if logical.is_empty() {
             logical_start = line_no;
         }
-        line_no += 1;
         if let Some(stripped) = line.strip_suffix('\\') {
             logical.push_str(stripped);
             logical.push(' ');

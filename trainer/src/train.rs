@@ -178,9 +178,11 @@ fn validate(cfg: &CellRunConfig, p: &PpoParams) -> Result<()> {
             cfg.agents, p.steps_per_env, p.num_mini_batches
         ));
     }
-    if !(p.final_noise_std.is_finite() && p.final_noise_std >= 0.0)
-        || !(p.init_noise_std.is_finite() && p.init_noise_std > 0.0)
-    {
+    let stds_ok = p.final_noise_std.is_finite()
+        && p.final_noise_std >= 0.0
+        && p.init_noise_std.is_finite()
+        && p.init_noise_std > 0.0;
+    if !stds_ok {
         return bad(format!(
             "init_noise_std must be > 0 and final_noise_std >= 0 (0: learned std), got {} and {}",
             p.init_noise_std, p.final_noise_std

@@ -356,7 +356,12 @@ impl Ppo {
                     };
                     mirror_sum += mirror.double_value(&[]);
                     if use_loss {
-                        loss = loss + mirror * p.mirror_loss_coef;
+                        // A new graph node, not tch's in-place `+=` on a tensor autograd
+                        // has recorded.
+                        #[allow(clippy::assign_op_pattern)]
+                        {
+                            loss = loss + mirror * p.mirror_loss_coef;
+                        }
                     }
                 }
                 let loss_v = loss.double_value(&[]);
