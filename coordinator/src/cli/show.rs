@@ -282,6 +282,10 @@ pub(crate) fn point_text(here: &[&pb::Cell], replicates: u32, mark: &str) -> Str
             Some(r) if c.state == pb::CellState::Stopped as i32 => {
                 format!("stopped@{}: {r:.3} ", c.epochs_done)
             }
+            // A long cell's epoch says how far it is (and a queued one resumes from there).
+            _ if c.epochs_done > 0 && c.state != pb::CellState::Done as i32 => {
+                format!("{}@{} ", cell_state(c.state), c.epochs_done)
+            }
             _ => format!("{} ", cell_state(c.state)),
         },
         (None, None) => "- ".into(),
@@ -436,9 +440,21 @@ mod tests {
         let mut queued = cell(3, 0, 1, 0.0);
         queued.state = pb::CellState::Queued as i32;
         queued.score = None;
-        let cells = [cell(1, 0, 0, 0.9), cell(2, 1, 0, 0.4), queued];
+        let mut running = cell(4, 1, 1, 0.0);
+        running.state = pb::CellState::Running as i32;
+        running.score = None;
+        running.epochs_done = 300;
+        let cells = [
+            cell(1, 0, 0, 0.9),
+            cell(2, 1, 0, 0.4),
+            queued,
+            running.clone(),
+        ];
         let text = render_show(&sweep, &cells);
         assert!(text.contains("0.900 n=1/ 25%*"), "{text}");
+        // The point w1 = 8 shows its scored seed; a cell on its own shows its epoch.
+        assert!(text.contains("0.400 n=1/ 25%"), "{text}");
+        assert_eq!(point_text(&[&running], 3, " "), "running@300 ");
         assert!(
             text.contains(
                 "best (*): cell 1 on flat, w1 2.000, w2 -6.000, score 0.9000, fall rate 25.0%"
