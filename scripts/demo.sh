@@ -6,6 +6,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
+# The binaries find the robot presets here, not in the source tree they were built from: a
+# shared CARGO_TARGET_DIR can hold binaries built from another clone, since deleted (session
+# 35 lost a recording's queue that way).
+export GAITSWEEP_ROBOTS="${GAITSWEEP_ROBOTS:-$PWD/robots}"
 cargo build --release --workspace --bins
 
 SPEC="${1:-scripts/demo-sweep.toml}"

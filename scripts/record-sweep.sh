@@ -22,6 +22,10 @@ cd "$(dirname "$0")/.."
 DATA="${1:?usage: scripts/record-sweep.sh DATA_DIR [SPEC]}"
 SPEC="${2:-}"
 source scripts/setup.sh
+# The binaries find the robot presets here, not in the source tree they were built from: a
+# shared CARGO_TARGET_DIR can hold binaries built from another clone, since deleted (session
+# 35 lost a recording's queue that way).
+export GAITSWEEP_ROBOTS="${GAITSWEEP_ROBOTS:-$PWD/robots}"
 cargo build --release --workspace --bins
 BIN="${CARGO_TARGET_DIR:-$PWD/target}/release"
 mkdir -p "$DATA"

@@ -118,6 +118,7 @@ pub async fn run(args: DaemonArgs) -> Result<()> {
         device,
         work_dir,
         train: Arc::new(|cfg, observer| train_cell(cfg, observer)),
+        robot_wait: ROBOT_WAIT,
     });
     tracing::info!(worker = %reg.worker_id, slots = args.slots, device = %args.device, url = %args.connect, "worker registered");
     let mut slots = tokio::task::JoinSet::new();
@@ -165,10 +166,17 @@ struct Ctx<C> {
     device: tch::Device,
     work_dir: PathBuf,
     train: TrainFn,
+    /// How long a slot waits before leasing again after a cell whose robot this machine
+    /// cannot load (first wait, longest wait; doubling in between).
+    robot_wait: (Duration, Duration),
 }
 
 /// How long a stopping worker waits for its slots to checkpoint and upload.
 const SHUTDOWN_GRACE: Duration = Duration::from_secs(60);
+
+/// The waits of a slot whose machine cannot load a leased cell's robot: 30 s, doubling to
+/// 15 min, so that a broken machine neither drains the queue nor gives up for good.
+const ROBOT_WAIT: (Duration, Duration) = (Duration::from_secs(30), Duration::from_secs(900));
 
 impl<C: Coordinator> Ctx<C> {
     fn worker_id(&self) -> String {
@@ -206,6 +214,7 @@ impl<C: Coordinator> Ctx<C> {
 }
 
 async fn slot_loop<C: Coordinator>(ctx: Arc<Ctx<C>>, slot: u32) {
+    let mut robot_wait = ctx.robot_wait.0;
     while !ctx.retry.stopping() {
         let worker_id = ctx.worker_id();
         let req = pb::LeaseRequest {
@@ -221,6 +230,23 @@ async fn slot_loop<C: Coordinator>(ctx: Arc<Ctx<C>>, slot: u32) {
                 lease: Some(lease), ..
             }) => {
                 let id = lease.lease_id;
+                // A robot this machine cannot load (its robot files missing or broken) is
+                // the machine's fault, not the cell's: counted as the cell's failure, it
+                // would fail every cell of the sweep within seconds, one lease after another.
+                if let Some(problem) = robot_problem(&lease).await {
+                    tracing::error!(slot, lease = id, error = %problem, wait_s = robot_wait.as_secs(),
+                        "this machine cannot load the cell's robot: giving the cell back (not counted against it) and waiting before leasing again; point GAITSWEEP_ROBOTS at the robots/ directory");
+                    give_back(
+                        &ctx,
+                        id,
+                        &format!("worker cannot load the robot: {problem}"),
+                    )
+                    .await;
+                    tokio::time::sleep(robot_wait).await;
+                    robot_wait = (robot_wait * 2).min(ctx.robot_wait.1);
+                    continue;
+                }
+                robot_wait = ctx.robot_wait.0;
                 if let Err(e) = run_lease(&ctx, slot, lease).await {
                     tracing::error!(slot, lease = id, error = %e, "lease ended with an error");
                 }
@@ -236,6 +262,40 @@ async fn slot_loop<C: Coordinator>(ctx: Arc<Ctx<C>>, slot: u32) {
                 tracing::error!(slot, code = ?s.code(), error = %s.message(), "cannot lease cells, retrying in 5 s");
                 tokio::time::sleep(Duration::from_secs(5)).await;
             }
+        }
+    }
+}
+
+/// Why this machine cannot train a leased cell's robot, if it cannot: its preset and URDF
+/// are read as training reads them.
+async fn robot_problem(lease: &pb::Lease) -> Option<String> {
+    let robot = lease.task.as_ref()?.robot.clone();
+    let loaded = tokio::task::spawn_blocking(move || gaitsweep_sim::Preset::load(&robot)).await;
+    match loaded {
+        Ok(Ok(_)) => None,
+        Ok(Err(e)) => Some(e.to_string()),
+        Err(e) => Some(format!("loading the robot panicked: {e}")),
+    }
+}
+
+/// Gives a leased cell back to the coordinator: it is queued again at once, and the
+/// attempt is not counted as a failure.
+async fn give_back<C: Coordinator>(ctx: &Ctx<C>, lease: i64, reason: &str) -> bool {
+    let req = pb::ReleaseLeaseRequest {
+        lease_id: lease,
+        reason: reason.into(),
+    };
+    match ctx
+        .retry
+        .call("release_lease", None, || {
+            ctx.client.release_lease(req.clone())
+        })
+        .await
+    {
+        Ok(r) => r.requeued,
+        Err(s) => {
+            tracing::warn!(lease, code = ?s.code(), error = %s.message(), "could not give the cell back, its lease will expire");
+            false
         }
     }
 }
@@ -516,26 +576,12 @@ async fn deliver<C: Coordinator>(
                 if ctx.retry.stopping() {
                     // Give the cell back at once: it is queued again without waiting for the
                     // lease to expire, and a stop is not counted as a failed attempt.
-                    let req = pb::ReleaseLeaseRequest {
-                        lease_id: lease,
-                        reason: "worker stopping".into(),
-                    };
-                    match ctx
-                        .retry
-                        .call("release_lease", None, || {
-                            ctx.client.release_lease(req.clone())
-                        })
-                        .await
-                    {
-                        Ok(r) => tracing::info!(
-                            lease,
-                            requeued = r.requeued,
-                            "cell stopped and given back; it resumes from its uploaded checkpoint"
-                        ),
-                        Err(s) => {
-                            tracing::warn!(lease, code = ?s.code(), error = %s.message(), "cell stopped; could not give it back, its lease will expire")
-                        }
-                    }
+                    let requeued = give_back(ctx, lease, "worker stopping").await;
+                    tracing::info!(
+                        lease,
+                        requeued,
+                        "cell stopped and given back; it resumes from its uploaded checkpoint"
+                    );
                     return Ok(());
                 }
                 tracing::error!(lease, error = %e, "training failed");

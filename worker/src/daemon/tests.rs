@@ -269,6 +269,7 @@ fn ctx(client: Recorder, work_dir: &Path) -> Arc<Ctx<Recorder>> {
         device: tch::Device::Cpu,
         work_dir: work_dir.to_path_buf(),
         train: scripted_trainer(),
+        robot_wait: (Duration::from_millis(50), Duration::from_millis(200)),
     })
 }
 
@@ -583,6 +584,92 @@ async fn a_slot_registers_again_when_unknown_then_trains_and_delivers_a_cell() {
         !dir.path().join("lease-7").exists(),
         "a delivered cell's work dir is removed"
     );
+}
+
+fn lease_of(id: i64, robot: &str) -> pb::LeaseResponse {
+    pb::LeaseResponse {
+        lease: Some(pb::Lease {
+            lease_id: id,
+            task: Some(pb::CellTask {
+                cell: Some(pb::Cell {
+                    cell_id: id,
+                    terrain: "flat".into(),
+                    w1: 2.0,
+                    w2: -6.0,
+                    ..Default::default()
+                }),
+                robot: robot.into(),
+                agents: 4,
+                epochs: 2,
+                checkpoint_every: 2,
+                ..Default::default()
+            }),
+            deadline_unix_ms: 0,
+            resume_from: None,
+        }),
+        retry_after_ms: 0,
+    }
+}
+
+#[tokio::test]
+async fn a_robot_this_machine_cannot_load_gives_the_cell_back_uncounted_and_waits() {
+    // Session 35: a worker whose robot files were deleted under it failed every cell of a
+    // 64-cell sweep, 1,000 attempts each, within a minute.
+    let dir = tempfile::tempdir().unwrap();
+    let rec = Recorder::default();
+    let ctx = ctx(rec.clone(), dir.path());
+    {
+        let mut s = rec.0.lock().unwrap();
+        s.stop_when_out_of_leases = Some(ctx.retry.shutdown.clone());
+        s.leases.push_back(lease_of(7, "no-such-robot"));
+        s.leases.push_back(lease_of(8, "no-such-robot"));
+        s.leases.push_back(lease_of(9, "anymal"));
+    }
+    let started = std::time::Instant::now();
+    tokio::time::timeout(Duration::from_secs(30), slot_loop(ctx.clone(), 0))
+        .await
+        .expect("the slot stops once the worker is stopping");
+    let calls: Vec<String> = rec
+        .calls()
+        .into_iter()
+        .filter(|c| c != "heartbeat")
+        .collect();
+    let short: Vec<String> = calls
+        .iter()
+        .map(|c| c.split(' ').take(2).collect::<Vec<_>>().join(" "))
+        // How epochs group into reports depends on timing: one line per epoch.
+        .flat_map(|c| match c.strip_prefix("progress ") {
+            Some(epochs) => epochs.split(',').map(|e| format!("progress {e}")).collect(),
+            None => vec![c],
+        })
+        .collect();
+    assert_eq!(
+        short,
+        [
+            "lease w1",
+            "release worker",
+            "lease w1",
+            "release worker",
+            "lease w1",
+            "progress 1",
+            "progress 2",
+            "upload 2",
+            "result 2",
+            "lease w1",
+        ],
+        "{calls:?}"
+    );
+    assert!(
+        calls[1].contains("cannot load the robot") && calls[1].contains("no-such-robot"),
+        "the reason names the robot: {calls:?}"
+    );
+    assert_eq!(
+        rec.attempts("fail_cell"),
+        0,
+        "nothing is counted against the cells"
+    );
+    // It waited 50 ms, then 100 ms (doubled), before leasing again.
+    assert!(started.elapsed() >= Duration::from_millis(150));
 }
 
 /// Waits up to 10 s for `cond`.
