@@ -393,23 +393,30 @@ mod tests {
         );
     }
 
-    #[test]
-    fn finalists_are_marked_among_themselves() {
-        // Point w1 = 2 had the best single run (0.9) but is no finalist here; point w1 = 8
-        // is, with seeds 0.6 and 0.5: the terrain's best (+) is the finalist, not the 0.9.
-        let sweep = pb::Sweep {
+    /// A one-seed grid over w1 2 and 8 (w2 -6) on flat ground whose best point gets
+    /// `seeds` seeds; `best` is the promoted cell (0: none).
+    fn finalist_sweep(seeds: u32, best: i64) -> pb::Sweep {
+        pb::Sweep {
             sweep_id: 1,
             spec: Some(pb::SweepSpec {
                 terrains: vec!["flat".into()],
                 seeds: 1,
                 finalists_top: 1,
-                finalists_seeds: 2,
+                finalists_seeds: seeds,
                 ..Default::default()
             }),
             w1_values: vec![2.0, 8.0],
             w2_values: vec![-6.0],
+            best_cell_id: best,
             ..Default::default()
-        };
+        }
+    }
+
+    #[test]
+    fn finalists_are_marked_among_themselves() {
+        // Point w1 = 2 had the best single run (0.9) but is no finalist here; point w1 = 8
+        // is, with seeds 0.6 and 0.5: the terrain's best (+) is the finalist, not the 0.9.
+        let sweep = finalist_sweep(2, 0);
         let cells = [cell(1, 0, 0, 0.9), cell(3, 1, 0, 0.6), cell(4, 1, 1, 0.5)];
         let text = render_show(&sweep, &cells);
         assert!(text.contains("finalists: the top 1 points"), "{text}");
@@ -423,20 +430,7 @@ mod tests {
     #[test]
     fn a_best_point_with_one_scored_seed_is_shown_as_a_single_run() {
         // The finalists' extra seeds are not scored yet: the best point has one run.
-        let sweep = pb::Sweep {
-            sweep_id: 1,
-            spec: Some(pb::SweepSpec {
-                terrains: vec!["flat".into()],
-                seeds: 1,
-                finalists_top: 1,
-                finalists_seeds: 3,
-                ..Default::default()
-            }),
-            w1_values: vec![2.0, 8.0],
-            w2_values: vec![-6.0],
-            best_cell_id: 1,
-            ..Default::default()
-        };
+        let sweep = finalist_sweep(3, 1);
         let mut queued = cell(3, 0, 1, 0.0);
         queued.state = pb::CellState::Queued as i32;
         queued.score = None;

@@ -553,18 +553,7 @@ async fn a_slot_registers_again_when_unknown_then_trains_and_delivers_a_cell() {
     tokio::time::timeout(Duration::from_secs(30), slot_loop(ctx.clone(), 0))
         .await
         .expect("the slot stops once the worker is stopping");
-    let calls: Vec<String> = rec
-        .calls()
-        .into_iter()
-        .filter(|c| c != "heartbeat")
-        .map(|c| c.split(' ').take(2).collect::<Vec<_>>().join(" "))
-        // How epochs group into reports depends on timing (a backlog goes in one call):
-        // one line per epoch.
-        .flat_map(|c| match c.strip_prefix("progress ") {
-            Some(epochs) => epochs.split(',').map(|e| format!("progress {e}")).collect(),
-            None => vec![c],
-        })
-        .collect();
+    let calls = short_calls(&rec.calls());
     assert_eq!(
         calls,
         [
@@ -634,15 +623,7 @@ async fn a_robot_this_machine_cannot_load_gives_the_cell_back_uncounted_and_wait
         .into_iter()
         .filter(|c| c != "heartbeat")
         .collect();
-    let short: Vec<String> = calls
-        .iter()
-        .map(|c| c.split(' ').take(2).collect::<Vec<_>>().join(" "))
-        // How epochs group into reports depends on timing: one line per epoch.
-        .flat_map(|c| match c.strip_prefix("progress ") {
-            Some(epochs) => epochs.split(',').map(|e| format!("progress {e}")).collect(),
-            None => vec![c],
-        })
-        .collect();
+    let short = short_calls(&calls);
     assert_eq!(
         short,
         [
@@ -670,6 +651,20 @@ async fn a_robot_this_machine_cannot_load_gives_the_cell_back_uncounted_and_wait
     );
     // It waited 50 ms, then 100 ms (doubled), before leasing again.
     assert!(started.elapsed() >= Duration::from_millis(150));
+}
+
+/// The calls but heartbeats, each cut to its first two words, with one `progress` line per
+/// epoch: how epochs group into reports depends on timing (a backlog goes in one call).
+fn short_calls(calls: &[String]) -> Vec<String> {
+    calls
+        .iter()
+        .filter(|c| *c != "heartbeat")
+        .map(|c| c.split(' ').take(2).collect::<Vec<_>>().join(" "))
+        .flat_map(|c| match c.strip_prefix("progress ") {
+            Some(epochs) => epochs.split(',').map(|e| format!("progress {e}")).collect(),
+            None => vec![c],
+        })
+        .collect()
 }
 
 /// Waits up to 10 s for `cond`.
