@@ -88,7 +88,8 @@ SWEEP=$(cat "$DATA/sweep.id")
 echo "recording sweep $SWEEP in $DATA with $WORKERS workers ($(date -u +%FT%TZ))"
 if [ -n "$SNAP" ]; then
   # A stop waits for a snapshot under way (the trap runs after it) but not for the sleep.
-  ( trap 'exit 0' TERM
+  # The TERM trap stops the sleep too, which would otherwise outlive the script.
+  ( trap 'kill $! 2>/dev/null; exit 0' TERM
     while true; do
       sleep "$(( ${GAITSWEEP_RECORD_SNAPSHOT_MINUTES:-15} * 60 ))" & wait $!
       take_snapshot || true
