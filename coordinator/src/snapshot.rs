@@ -47,6 +47,10 @@ pub struct SnapshotSummary {
     pub bytes: u64,
 }
 
+/// The error of an attempt that was running when its snapshot was taken.
+pub const RELEASED_BY_SNAPSHOT: &str =
+    "released: the snapshot was taken while this attempt ran; a coordinator restored from it queues the cell again";
+
 /// The checkpoints a snapshot keeps: (sha256, data-dir-relative path), sorted.
 const KEPT_SQL: &str = "SELECT sha256, path FROM checkpoints WHERE sha256 IN ( \
      SELECT last_checkpoint_sha256 FROM cells \
@@ -136,7 +140,7 @@ pub async fn snapshot(
     })
 }
 
-/// In the copy `db_file`: keeps the training metrics of every `every`-th epoch and of each
+/// In the copy `db_file`: queues the cells that were running; keeps the training metrics of every `every`-th epoch and of each
 /// cell's first and last reported epoch (a snapshot is committed to a repository, and a
 /// 1,200-epoch cell's ~40 metrics an epoch are ~2 MB a cell); returns the checkpoints to
 /// keep (sha256, data-dir-relative path) and how many checkpoints the copy lists.
@@ -149,6 +153,20 @@ async fn trim_copy(
     let mut conn = sqlx::sqlite::SqliteConnectOptions::new()
         .filename(db_file)
         .connect()
+        .await?;
+    // The copy is a restore point, and no worker holds its leases any more: its running
+    // attempts end released (not counted towards the attempt limit) and their cells are
+    // queued, so a restored coordinator hands them out at once, resuming from their latest
+    // checkpoint, instead of after each lease expires as a counted failure.
+    sqlx::query(
+        "UPDATE attempts SET state = 'released', ended_unix_ms = $1, error = $2 WHERE state = 'running'",
+    )
+    .bind(crate::store::backend::now_ms())
+    .bind(RELEASED_BY_SNAPSHOT)
+    .execute(&mut conn)
+    .await?;
+    sqlx::query("UPDATE cells SET state = 'queued' WHERE state = 'running'")
+        .execute(&mut conn)
         .await?;
     let kept: Vec<(String, String)> = sqlx::query_as(KEPT_SQL)
         .bind(i64::from(keep_best))

@@ -1,8 +1,8 @@
 //! A recording moved between machines (`coordinator snapshot`, README "Recording over
 //! several sittings"): a sweep half done on one data dir is snapshotted while its
 //! coordinator runs, the snapshot keeps the database and only the checkpoints a later
-//! sitting needs, and a coordinator on a copy of it finishes the sweep, the interrupted
-//! cell resuming from its checkpoint.
+//! sitting needs, and a coordinator on a copy of it finishes the sweep, the cell that was
+//! training when the snapshot was taken resuming from its checkpoint at once.
 
 mod common;
 
@@ -73,20 +73,12 @@ async fn a_snapshot_resumes_the_sweep_on_a_fresh_data_dir() {
         },
     )
     .await;
-    a.stop("worker a to exit").await;
     let (scored, promoted_final): (i64, String) = sqlx::query_as(
         "SELECT s.cell_id, s.final_checkpoint_sha256 FROM scores s JOIN promotions p ON p.cell_id = s.cell_id",
     )
     .fetch_one(&db)
     .await
     .unwrap();
-    let (resume_cell, resume_epoch, resume_sha): (i64, i64, String) = sqlx::query_as(
-        "SELECT id, epochs_done, last_checkpoint_sha256 FROM cells WHERE state = 'queued'",
-    )
-    .fetch_one(&db)
-    .await
-    .unwrap();
-    assert!(resume_epoch >= 1, "{}", tail(&a.log_text(), 20));
     let left_out: String =
         sqlx::query_scalar("SELECT sha256 FROM cell_checkpoints WHERE cell_id = $1 AND epoch = 1")
             .bind(scored)
@@ -107,20 +99,45 @@ async fn a_snapshot_resumes_the_sweep_on_a_fresh_data_dir() {
         .copied()
         .filter(|&e| e % 10 == 0 || e == first_epoch || e == last_epoch)
         .collect();
-    let listed: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM checkpoints")
-        .fetch_one(&db)
-        .await
-        .unwrap();
 
-    // Snapshot while the coordinator runs, keeping no best cells but the promoted one.
+    // Snapshot while the coordinator runs and worker a trains the second cell, keeping no
+    // best cells but the promoted one; then worker a goes away for good, as a machine that
+    // is not coming back.
     let snap = first.path().join("snap");
     let out = snapshot(&coord.data, &snap);
+    a.stop("worker a to exit").await;
     let said = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(
         out.status.success(),
         "{said}{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let snap_db = gaitsweep_coordinator::store::reader::open(&snap, None)
+        .await
+        .unwrap();
+    // The running cell is queued in the snapshot and its attempt released (not a failure),
+    // to resume from the latest checkpoint the snapshot holds.
+    let (resume_cell, resume_sha, resume_epoch, attempt_state, attempt_error): (
+        i64,
+        String,
+        i64,
+        String,
+        String,
+    ) = sqlx::query_as(
+        "SELECT c.id, c.last_checkpoint_sha256, k.epoch, a.state, a.error FROM cells c \
+         JOIN cell_checkpoints k ON k.cell_id = c.id AND k.sha256 = c.last_checkpoint_sha256 \
+         JOIN attempts a ON a.cell_id = c.id WHERE c.state = 'queued'",
+    )
+    .fetch_one(&snap_db)
+    .await
+    .unwrap();
+    assert!(resume_epoch >= 1, "{}", tail(&a.log_text(), 20));
+    assert_eq!(attempt_state, "released", "{attempt_error}");
+    assert!(attempt_error.contains("snapshot"), "{attempt_error}");
+    let listed: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM checkpoints")
+        .fetch_one(&snap_db)
+        .await
+        .unwrap();
     assert!(
         said.contains(" 2 checkpoint files")
             && said.contains(&format!("{} checkpoints left out", listed - 2)),
@@ -129,9 +146,6 @@ async fn a_snapshot_resumes_the_sweep_on_a_fresh_data_dir() {
     let mut want = vec![promoted_final.clone(), resume_sha.clone()];
     want.sort();
     assert_eq!(files_under(&snap.join("checkpoints")), want);
-    let snap_db = gaitsweep_coordinator::store::reader::open(&snap, None)
-        .await
-        .unwrap();
     let kept_epochs: Vec<i64> = sqlx::query_scalar(
         "SELECT DISTINCT epoch FROM epoch_metrics WHERE cell_id = $1 ORDER BY epoch",
     )
@@ -144,7 +158,8 @@ async fn a_snapshot_resumes_the_sweep_on_a_fresh_data_dir() {
         "training metrics every 10th epoch, first and last"
     );
     let evals = |db: sqlx::AnyPool| async move {
-        let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM evaluations")
+        let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM evaluations WHERE cell_id = $1")
+            .bind(scored)
             .fetch_one(&db)
             .await
             .unwrap();
@@ -176,6 +191,14 @@ async fn a_snapshot_resumes_the_sweep_on_a_fresh_data_dir() {
     .await
     .unwrap();
     assert_eq!(resumed_from, resume_epoch, "{}", tail(&b.log_text(), 30));
+    // Worker b took the cell at once, not after worker a's lease (300 s) expired as a
+    // counted failure.
+    let failures: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM attempts WHERE state IN ('expired', 'failed')")
+            .fetch_one(&db)
+            .await
+            .unwrap();
+    assert_eq!(failures, 0, "{}", tail(&b.log_text(), 30));
     assert_eq!(
         scores, 2,
         "the first sitting's score is kept, none is duplicated"

@@ -11,7 +11,6 @@ use crate::Result;
 use gaitsweep_core::pb;
 use gaitsweep_core::records::RungDecisionRecord;
 use std::sync::Arc;
-use std::time::{SystemTime, UNIX_EPOCH};
 use tokio::sync::{broadcast, mpsc};
 use tokio_stream::wrappers::ReceiverStream;
 
@@ -43,12 +42,7 @@ pub struct Coordinator<S> {
     pub started: std::time::Instant,
 }
 
-/// Current unix time in milliseconds.
-pub fn now_ms() -> i64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_millis() as i64)
-}
+pub use crate::store::backend::now_ms;
 
 impl<S: Store> Coordinator<S> {
     /// Builds the shared state and loads the running leases from storage, each with a
