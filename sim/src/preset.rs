@@ -23,6 +23,10 @@ pub struct Preset {
     pub dir: PathBuf,
     /// The URDF file.
     pub urdf_path: PathBuf,
+    /// The URDF file's text, read with the preset: every environment built from this preset
+    /// parses this text, so a cell simulates the robot its preset digest names, also if the
+    /// file changes or goes away while the cell trains.
+    pub urdf_text: std::sync::Arc<str>,
     /// Name of the floating base link.
     pub base_link: String,
     /// Actuated joints in action order.
@@ -183,10 +187,17 @@ impl Preset {
             h.update(t.as_bytes());
         }
         let digest = hex::encode(h.chain_update(&urdf_bytes).finalize());
+        let urdf_text = String::from_utf8(urdf_bytes).map_err(|e| {
+            err(format!(
+                "urdf {} is not UTF-8 text ({e}): save it as UTF-8",
+                urdf_path.display()
+            ))
+        })?;
         Ok(Preset {
             name: file.name,
             dir: dir.to_path_buf(),
             urdf_path,
+            urdf_text: urdf_text.into(),
             base_link: file.base_link,
             joints: file.joints,
             feet: file.feet,
@@ -377,6 +388,26 @@ mod tests {
             (proof.ppo.init_noise_std, proof.ppo.mirror_loss_coef),
             (0.3, 0.0)
         );
+    }
+
+    /// Session 35: a cell's final evaluation failed because the robot's files were deleted
+    /// while it trained. A loaded preset holds its URDF's text, and environments are built
+    /// from it, not from the file.
+    #[test]
+    fn a_loaded_preset_needs_its_files_no_more() {
+        let dir = tempfile::tempdir().unwrap();
+        let copy = dir.path().join("anymal");
+        std::fs::create_dir(&copy).unwrap();
+        for f in ["preset.toml", "robot.urdf"] {
+            std::fs::copy(robots_dir().join("anymal").join(f), copy.join(f)).unwrap();
+        }
+        let p = Preset::load_from_dir(&copy).unwrap();
+        assert_eq!(p.digest, Preset::load("anymal").unwrap().digest);
+        std::fs::remove_dir_all(&copy).unwrap();
+        let model = crate::urdf::RobotModel::load(&p).unwrap();
+        assert!(model.total_mass > 10.0, "{}", model.total_mass);
+        let e = Preset::load_from_dir(&copy).unwrap_err().to_string();
+        assert!(e.contains("preset.toml"), "{e}");
     }
 
     /// Issue 39: a sweep's grids on different terrains must differ only in the ground. Every

@@ -162,15 +162,9 @@ fn shape(path: &Path, link: &str, g: &urdf_rs::Geometry) -> Result<Shape> {
 }
 
 impl RobotModel {
-    /// Loads and checks the preset's URDF.
+    /// Parses and checks the preset's URDF, as read when the preset was loaded.
     pub fn load(preset: &Preset) -> Result<RobotModel> {
-        let path = &preset.urdf_path;
-        let text = std::fs::read_to_string(path).map_err(|e| Error::Urdf {
-            path: path.clone(),
-            element: "file".into(),
-            message: format!("cannot read: {e}"),
-        })?;
-        Self::from_str(path, &text, preset)
+        Self::from_str(&preset.urdf_path, &preset.urdf_text, preset)
     }
 
     /// Parses URDF text (named `path` in errors) against the preset's joints and feet.
