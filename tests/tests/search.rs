@@ -187,16 +187,13 @@ async fn asha_survives_a_killed_worker_and_a_restarted_coordinator_between_rungs
     let sweep = create(&mut c, spec.to_string()).await;
     let mut a = start_worker(tmp.path(), &coord.url(), "a");
     let db = coord.db().await;
-    wait_for("the first rung decisions", SWEEP_TIMEOUT, || {
-        let db = db.clone();
-        async move {
-            let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM rung_decisions")
-                .fetch_one(&db)
-                .await
-                .ok()?;
-            (n >= 3).then_some(())
-        }
-    })
+    wait_for_at_least(
+        &db,
+        "the first rung decisions",
+        SWEEP_TIMEOUT,
+        "SELECT COUNT(*) FROM rung_decisions",
+        3,
+    )
     .await;
     a.kill();
     db.close().await;
@@ -261,16 +258,13 @@ async fn run_across_a_restart(spec: &str) -> (tempfile::TempDir, Coord, pb::Swee
     assert_eq!(sweep.cells_total, 2, "generation 0 only");
     let mut a = start_worker(tmp.path(), &coord.url(), "a");
     let db = coord.db().await;
-    wait_for("generation 1 to be queued", SWEEP_TIMEOUT, || {
-        let db = db.clone();
-        async move {
-            let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM cells WHERE generation = 1")
-                .fetch_one(&db)
-                .await
-                .ok()?;
-            (n >= 2).then_some(())
-        }
-    })
+    wait_for_at_least(
+        &db,
+        "generation 1 to be queued",
+        SWEEP_TIMEOUT,
+        "SELECT COUNT(*) FROM cells WHERE generation = 1",
+        2,
+    )
     .await;
     a.kill();
     db.close().await;

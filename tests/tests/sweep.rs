@@ -245,16 +245,13 @@ async fn killed_worker_cell_resumes(on: Db) {
     let sweep = create(&mut c, tiny_spec(&[4.0], &[-5.0], LONG_EPOCHS)).await;
     let mut a = start_worker(tmp.path(), &coord.url(), "a");
     let db = coord.db().await;
-    let epoch: i64 = wait_for("worker a to upload a checkpoint", SWEEP_TIMEOUT, || {
-        let db = db.clone();
-        async move {
-            let e: Option<i64> = sqlx::query_scalar("SELECT MAX(epoch) FROM cell_checkpoints")
-                .fetch_one(&db)
-                .await
-                .ok()?;
-            e.filter(|&e| e >= 1)
-        }
-    })
+    let epoch = wait_for_at_least(
+        &db,
+        "worker a to upload a checkpoint",
+        SWEEP_TIMEOUT,
+        "SELECT MAX(epoch) FROM cell_checkpoints",
+        1,
+    )
     .await;
     a.kill();
     let state: String = sqlx::query_scalar("SELECT state FROM cells")
@@ -321,16 +318,13 @@ async fn stopped_worker_gives_its_cell_back_at_once() {
     let sweep = create(&mut c, tiny_spec(&[4.0], &[-5.0], LONG_EPOCHS)).await;
     let mut a = start_worker(tmp.path(), &coord.url(), "a");
     let db = coord.db().await;
-    wait_for("worker a to upload a checkpoint", SWEEP_TIMEOUT, || {
-        let db = db.clone();
-        async move {
-            let e: Option<i64> = sqlx::query_scalar("SELECT MAX(epoch) FROM cell_checkpoints")
-                .fetch_one(&db)
-                .await
-                .ok()?;
-            e.filter(|&e| e >= 1)
-        }
-    })
+    wait_for_at_least(
+        &db,
+        "worker a to upload a checkpoint",
+        SWEEP_TIMEOUT,
+        "SELECT MAX(epoch) FROM cell_checkpoints",
+        1,
+    )
     .await;
     a.stop("worker a to exit after SIGTERM").await;
     // Far sooner than the 300 s lease: the cell is back in the queue.
@@ -388,16 +382,13 @@ async fn coordinator_killed_and_restarted(on: Db) {
     let sweep = create(&mut c, tiny_spec(&[2.0], &[-6.0, -3.0], LONG_EPOCHS)).await;
     let w = start_worker(tmp.path(), &coord.url(), "a");
     let db = coord.db().await;
-    wait_for("the first epoch metrics", SWEEP_TIMEOUT, || {
-        let db = db.clone();
-        async move {
-            let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM epoch_metrics")
-                .fetch_one(&db)
-                .await
-                .ok()?;
-            (n > 0).then_some(())
-        }
-    })
+    wait_for_at_least(
+        &db,
+        "the first epoch metrics",
+        SWEEP_TIMEOUT,
+        "SELECT COUNT(*) FROM epoch_metrics",
+        1,
+    )
     .await;
     let done_before: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM scores")
         .fetch_one(&db)

@@ -111,6 +111,26 @@ where
     }
 }
 
+/// Polls `sql`, a query for one integer on `db` (a `COUNT` or a `MAX`: NULL is no value
+/// yet), until it is at least `at_least` or `timeout` passes; returns the value.
+pub async fn wait_for_at_least(
+    db: &sqlx::AnyPool,
+    what: &str,
+    timeout: Duration,
+    sql: &str,
+    at_least: i64,
+) -> i64 {
+    wait_for(what, timeout, || {
+        let db = db.clone();
+        let sql = sql.to_string();
+        async move {
+            let n: Option<i64> = sqlx::query_scalar(&sql).fetch_one(&db).await.ok()?;
+            n.filter(|&n| n >= at_least)
+        }
+    })
+    .await
+}
+
 /// A running coordinator.
 pub struct Coord {
     pub proc: Proc,
