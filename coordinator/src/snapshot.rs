@@ -5,10 +5,12 @@
 //!
 //! A recording too long for one machine (the paper's study, issue 39) lives in a snapshot
 //! committed to the repository between sittings; `scripts/record-sweep.sh` restores it into
-//! a fresh data dir and writes it back. The checkpoint files kept are those of the cells that
-//! will train again (queued or running: their latest checkpoint, which a worker resumes from),
-//! the final checkpoint of each sweep's promoted cells (the latest promotion, overall and per terrain), and the final checkpoints of the `keep_best`
-//! best-scored cells of each sweep and terrain (the finalists a later promotion may pick).
+//! a fresh data dir and writes it back. The cells training when the snapshot is taken are
+//! queued in it (a restore point holds no lease). The checkpoint files kept are those of
+//! the cells that will train again (their latest checkpoint, which a worker resumes from),
+//! the final checkpoint of each sweep's promoted cells (the latest promotion, overall and
+//! per terrain), and the final checkpoints of the `keep_best` best-scored cells of each
+//! sweep and terrain (the finalists a later promotion may pick).
 //! The other files stay listed in `checkpoints` with their hashes; asking the restored
 //! coordinator for one says that it was left out ([`crate::Error::CheckpointFileMissing`]).
 
@@ -140,10 +142,11 @@ pub async fn snapshot(
     })
 }
 
-/// In the copy `db_file`: queues the cells that were running; keeps the training metrics of every `every`-th epoch and of each
-/// cell's first and last reported epoch (a snapshot is committed to a repository, and a
-/// 1,200-epoch cell's ~40 metrics an epoch are ~2 MB a cell); returns the checkpoints to
-/// keep (sha256, data-dir-relative path) and how many checkpoints the copy lists.
+/// In the copy `db_file`: queues the cells that were running; keeps the training metrics
+/// of every `every`-th epoch and of each cell's first and last reported epoch (a snapshot
+/// is committed to a repository, and a 1,200-epoch cell's ~40 metrics an epoch are ~2 MB a
+/// cell); returns the checkpoints to keep (sha256, data-dir-relative path) and how many
+/// checkpoints the copy lists.
 async fn trim_copy(
     db_file: &Path,
     keep_best: u32,
