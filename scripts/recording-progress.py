@@ -43,15 +43,14 @@ for sweep, name, spec_json, sweep_state in db.execute(
     last = db.execute(
         "SELECT MAX(ended_unix_ms) FROM attempts a JOIN cells c ON c.id = a.cell_id "
         "WHERE c.sweep_id = ?", (sweep,)).fetchone()[0] or 0
-    wall, trained = 0.0, 0
-    for a, start, end, resumed in db.execute(
-            "SELECT a.id, a.started_unix_ms, a.ended_unix_ms, a.resumed_from_epoch FROM attempts a "
-            "JOIN cells c ON c.id = a.cell_id WHERE c.sweep_id = ? AND a.ended_unix_ms > ?",
-            (sweep, last - 86_400_000)).fetchall():
-        top = db.execute("SELECT MAX(epoch) FROM epoch_metrics WHERE attempt_id = ?", (a,)).fetchone()[0]
-        if top is not None and top > resumed:
-            wall += (end - start) / 1000
-            trained += top - resumed
+    wall, trained = db.execute(
+        "SELECT COALESCE(SUM(a.ended_unix_ms - a.started_unix_ms) / 1000.0, 0), "
+        "COALESCE(SUM(m.top - a.resumed_from_epoch), 0) FROM attempts a "
+        "JOIN cells c ON c.id = a.cell_id "
+        "JOIN (SELECT attempt_id, MAX(epoch) AS top FROM epoch_metrics GROUP BY attempt_id) m "
+        "ON m.attempt_id = a.id "
+        "WHERE c.sweep_id = ? AND a.ended_unix_ms > ? AND m.top > a.resumed_from_epoch",
+        (sweep, last - 86_400_000)).fetchone()
     running = counts.get("running", 0)
     print(f"sweep {sweep} {name} ({sweep_state}): {counts.get('done', 0)} of {total} cells done, "
           f"{counts.get('failed', 0)} failed, {running} running"
