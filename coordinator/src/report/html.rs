@@ -181,6 +181,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
             }
             if d.evolution.is_none() {
                 shape_paragraph(&mut o, d, t);
+                unrewarded_paragraph(&mut o, d, t);
             }
         }
         fig(
@@ -332,11 +333,12 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
             }
             None => o.push_str(&"<td></td>".repeat(12)),
         }
-        let _ = writeln!(
-            o,
-            "<td>{}</td></tr>",
-            esc(c.last_error.as_deref().unwrap_or(""))
-        );
+        let note = [
+            c.never_rewarded().then_some(NEVER_REWARDED),
+            c.last_error.as_deref(),
+        ];
+        let note: Vec<&str> = note.into_iter().flatten().collect();
+        let _ = writeln!(o, "<td>{}</td></tr>", esc(&note.join("; ")));
     }
     o.push_str("</table>\n<p>Every value comes from the coordinator's database (tables cells, scores, level_scores, epoch_metrics, promotions). \
                 Overspeed is the mean of max(0, |v| \u{2212} |v_cmd|): how much faster than commanded the robots ran, which Eq. 4's progress term pays for.</p>\n</body></html>\n");
@@ -367,5 +369,31 @@ fn shape_paragraph(o: &mut String, d: &ReportData, t: usize) {
         s.steps,
         crate::shape::STANDING_SPEED,
         if standing.is_empty() { "none".to_string() } else { standing.join(", ") },
+    );
+}
+
+/// What the cell table says of a cell that was never rewarded.
+const NEVER_REWARDED: &str = "never rewarded: mean reward per step 0 at every epoch";
+
+/// The grid points of terrain `t` whose cells were never rewarded
+/// ([`ReportCell::never_rewarded`](super::ReportCell::never_rewarded)): their score is not
+/// a measure of what their weights teach.
+fn unrewarded_paragraph(o: &mut String, d: &ReportData, t: usize) {
+    let points = d.unrewarded_points(t);
+    if points.is_empty() {
+        return;
+    }
+    let names: Vec<String> = points
+        .iter()
+        .map(|&(i, j)| format!("({}, {})", fmt_w(d.w1_values[i]), fmt_w(d.w2_values[j])))
+        .collect();
+    let _ = writeln!(
+        o,
+        "<p>Points never rewarded: <b>{}</b> (w1, w2) = {}. Their mean reward per step was 0 at every epoch: \
+         every step's reward was clipped to 0 (only_positive_rewards) because the penalties, the torque's above all, \
+         outweighed the positive terms, so PPO had no reward to learn from. Their scores are those of policies that \
+         their weights taught nothing, marked &ldquo;no reward&rdquo; in the heatmap.</p>",
+        points.len(),
+        names.join(", "),
     );
 }

@@ -80,6 +80,20 @@ impl ReportCell {
         self.place.grid().map(|(i, j)| (i as usize, j as usize))
     }
 
+    /// Whether a scored cell trained without ever being rewarded: its mean reward per step
+    /// was exactly 0 at every epoch logged, i.e. every step's reward sum was clipped to 0
+    /// (`only_positive_rewards`, legged_gym's) because the penalties, the torque's at a
+    /// large w2, outweighed every positive term. PPO then had no reward to learn from, and
+    /// the score is that of a policy its weights taught nothing. A cell without a score
+    /// may yet be rewarded: `false`.
+    pub fn never_rewarded(&self) -> bool {
+        self.score.is_some()
+            && self
+                .curves
+                .get("mean_step_reward")
+                .is_some_and(|c| !c.is_empty() && c.iter().all(|&(_, v)| v == 0.0))
+    }
+
     /// The composite score, if the cell has a finite one.
     pub fn value(&self) -> Option<f64> {
         self.score
@@ -219,6 +233,21 @@ impl ReportData {
                     .map(|(s, n)| (n > 0).then(|| s / n as f64))
                     .collect()
             })
+            .collect()
+    }
+
+    /// Grid points `(w1_index, w2_index)` of terrain `t` that have a scored cell and whose
+    /// every scored cell was never rewarded ([`ReportCell::never_rewarded`]), in grid order.
+    pub fn unrewarded_points(&self, t: usize) -> Vec<(usize, usize)> {
+        let mut points: BTreeMap<(usize, usize), bool> = BTreeMap::new();
+        for c in self.cells_of(t).filter(|c| c.score.is_some()) {
+            if let Some(p) = c.grid() {
+                *points.entry(p).or_insert(true) &= c.never_rewarded();
+            }
+        }
+        points
+            .into_iter()
+            .filter_map(|(p, none)| none.then_some(p))
             .collect()
     }
 

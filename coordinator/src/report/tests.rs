@@ -170,6 +170,55 @@ fn best_and_overlap_follow_the_scores() {
 }
 
 #[test]
+fn points_never_rewarded_are_named_and_marked() {
+    let mut d = synthetic();
+    let zeros = |c: &mut ReportCell, last: f64| {
+        let mut curve: Vec<(u32, f64)> = (1..=20).map(|e| (e, 0.0)).collect();
+        curve[19].1 = last;
+        c.curves.insert("mean_step_reward".into(), curve);
+    };
+    for c in &mut d.cells {
+        match (c.terrain_index, c.grid()) {
+            // Rough (w1 7, w2 -2): 0 at every epoch. Flat (w1 2, w2 -2): the same, but it
+            // is still running and may yet be rewarded.
+            (1, Some((1, 3))) | (0, Some((0, 3))) => zeros(c, 0.0),
+            // Rough (w1 12, w2 -2): rewarded once, at its last epoch.
+            (1, Some((2, 3))) => zeros(c, 1e-6),
+            _ => {}
+        }
+    }
+    assert_eq!(d.unrewarded_points(1), vec![(1, 3)]);
+    assert!(d.unrewarded_points(0).is_empty());
+    let unrewarded: Vec<i64> = d
+        .cells
+        .iter()
+        .filter(|c| c.never_rewarded())
+        .map(|c| c.id)
+        .collect();
+    assert_eq!(unrewarded.len(), 1);
+
+    let dir = tempfile::tempdir().unwrap();
+    let gif = GifStatus::NotMade("--no-gif".into());
+    write_report(&d, dir.path(), &gif).unwrap();
+    assert_svg(&dir.path().join("score_rough.svg"), &["no reward"]);
+    let flat = std::fs::read_to_string(dir.path().join("score_flat.svg")).unwrap();
+    assert!(!flat.contains("no reward"), "flat has no such point");
+    let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
+    assert_eq!(
+        html.matches("Points never rewarded").count(),
+        1,
+        "rough only"
+    );
+    assert!(html.contains("Points never rewarded: <b>1</b> (w1, w2) = (7, -2)."));
+    assert_eq!(
+        html.matches("never rewarded: mean reward per step 0 at every epoch")
+            .count(),
+        1,
+        "one row of the cell table says so"
+    );
+}
+
+#[test]
 fn every_picture_is_a_whole_png_and_svg() {
     let d = synthetic();
     let dir = tempfile::tempdir().unwrap();

@@ -23,6 +23,8 @@ pub(super) struct Heatmap<'a> {
     pub(super) better: Better,
     /// Cells outlined in white (the overlap).
     pub(super) marks: Vec<(usize, usize)>,
+    /// Cells labelled "no reward" under their value ([`crate::report::ReportCell::never_rewarded`]).
+    pub(super) unrewarded: Vec<(usize, usize)>,
     pub(super) integer: bool,
 }
 
@@ -189,6 +191,16 @@ impl Figure for Heatmap<'_> {
             chart.draw_series(std::iter::once(
                 EmptyElement::at(at(j, i))
                     + Text::new("all terrains", (0, (cell_h * 0.3) as i32), small),
+            ))?;
+        }
+        for &(i, j) in &self.unrewarded {
+            let bg = self.values[i][j].map_or(RGBColor(225, 225, 225), |v| colormap(norm(v)));
+            let small = TextStyle::from((SANS, (font * 0.7).max(10.0)).into_font())
+                .color(if luminance(bg) < 0.5 { &WHITE } else { &BLACK })
+                .pos(Pos::new(HPos::Center, VPos::Center));
+            chart.draw_series(std::iter::once(
+                EmptyElement::at(at(j, i))
+                    + Text::new("no reward", (0, (cell_h * 0.3) as i32), small),
             ))?;
         }
         if let Some((i, j, v)) = best {

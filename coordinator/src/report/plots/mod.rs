@@ -286,6 +286,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
             notes: notes(d, t),
             better: Better::Higher,
             marks: vec![],
+            unrewarded: d.unrewarded_points(t),
             integer: false,
         };
         files.extend(save(&heat, out, &format!("score_{s}"))?);
@@ -307,6 +308,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
             notes: notes(d, t),
             better: Better::Lower,
             marks: vec![],
+            unrewarded: vec![],
             integer: false,
         };
         files.extend(save(&falls, out, &format!("fall_rate_{s}"))?);
@@ -334,6 +336,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
                     Better::Lower
                 },
                 marks: vec![],
+                unrewarded: vec![],
                 integer: false,
             };
             files.extend(save(&heat, out, &format!("{name}_{s}"))?);
@@ -361,6 +364,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
             notes: vec![],
             better: Better::None,
             marks: cells,
+            unrewarded: vec![],
             integer: true,
         };
         files.extend(save(&heat, out, "overlap")?);
