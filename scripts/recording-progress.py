@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Where a recording made with scripts/record-sweep.sh stands: how much is left and when it
 ends at the speed measured so far, the runs in progress, and for every grid point of every
-terrain whose replicates are done their final scores (falls, |v_cmd - v|), the mean and, when
+terrain whose replicates are done their final scores (falls, |v_cmd - v|, "never rewarded" as
+the report says it), the mean and, when
 the sweep evaluates during training, the evaluations at a few epochs. Reads the data dir's
 (or a snapshot dir's) SQLite file read-only, so it can run beside the recording.
 
@@ -76,6 +77,10 @@ for sweep, name, spec_json, sweep_state in db.execute(
         ).fetchone()
         evals = dict(db.execute("SELECT epoch, score FROM evaluations WHERE cell_id = ? "
                                 "AND kind = 'periodic'", (cid,)))
+        # The report's "never rewarded": mean reward per step 0 at every epoch logged.
+        top = db.execute("SELECT MAX(ABS(value)) FROM epoch_metrics WHERE cell_id = ? "
+                         "AND name = 'mean_step_reward'", (cid,)).fetchone()[0]
+        final = (*final, top == 0)
         points.setdefault((terrain, w1, w2), []).append((rep, final, evals))
     if not points:
         continue
@@ -86,7 +91,8 @@ for sweep, name, spec_json, sweep_state in db.execute(
           + (f" evaluation at {head} per replicate |" if periodic else ""))
     print("|---|---:|---:|---|---:|" + ("---|" if periodic else ""))
     for (terrain, w1, w2), reps in points.items():
-        fin_txt = " / ".join(f"{f[0]:.3f} ({100 * f[1]:.0f}%, {f[2]:.3f})" for _, f, _ in reps)
+        fin_txt = " / ".join(f"{f[0]:.3f} ({100 * f[1]:.0f}%, {f[2]:.3f}"
+                             + ("; never rewarded)" if f[3] else ")") for _, f, _ in reps)
         mean = sum(f[0] for _, f, _ in reps) / len(reps)
         row = f"| {terrain} | {w1:.2f} | {w2:.2f} | {fin_txt} | {mean:.3f} |"
         if periodic:
