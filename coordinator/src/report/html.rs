@@ -182,6 +182,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
             if d.evolution.is_none() {
                 shape_paragraph(&mut o, d, t);
                 unrewarded_paragraph(&mut o, d, t);
+                torque_share_paragraph(&mut o, d, t);
             }
         }
         fig(
@@ -206,6 +207,12 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
             &mut o,
             &format!("surface_{s}"),
             &format!("gait score surface on {terrain}"),
+            "",
+        );
+        fig(
+            &mut o,
+            &format!("torque_share_{s}"),
+            &format!("torque penalty against tracking reward on {terrain}, the contrast w2 sets"),
             "",
         );
         o.push_str("<h3>Score components</h3>\n");
@@ -394,6 +401,24 @@ fn unrewarded_paragraph(o: &mut String, d: &ReportData, t: usize) {
          outweighed the positive terms, so PPO had no reward to learn from. Their scores are those of policies that \
          their weights taught nothing, marked &ldquo;no reward&rdquo; in the heatmap.</p>",
         points.len(),
+        names.join(", "),
+    );
+}
+
+/// Where on terrain `t` the torque weight shapes the reward
+/// ([`ReportData::negligible_torque_columns`]).
+fn torque_share_paragraph(o: &mut String, d: &ReportData, t: usize) {
+    let cols = d.negligible_torque_columns(t);
+    if cols.is_empty() {
+        return;
+    }
+    let names: Vec<String> = cols.iter().map(|&j| fmt_w(d.w2_values[j])).collect();
+    let _ = writeln!(
+        o,
+        "<p>Torque penalty under {:.0}% of the tracking reward (mean over training, every cell): w2 = {}. \
+         There the weights give nearly the same reward whatever w2, so cells of one row differ by their runs' spread \
+         more than by w2.</p>",
+        100.0 * super::NEGLIGIBLE_TORQUE_SHARE,
         names.join(", "),
     );
 }

@@ -5,6 +5,8 @@
 //! - `score_<terrain>.{png,svg}`: heatmap of the gait score over (w1, w2), best cell marked;
 //! - `surface_<terrain>.{png,svg}`: the same as a 3D surface;
 //! - `<component>_<terrain>.{png,svg}` for track, effort, tilt and progress;
+//! - `torque_share_<terrain>.{png,svg}`: the torque penalty against the tracking reward in
+//!   each cell's training ([`ReportCell::torque_share`]), where w2 shapes the reward;
 //! - `overlap.{png,svg}`: cells in the top quartile on every terrain (more than one terrain);
 //! - `curves_<terrain>.{png,svg}`: learning curves (mean reward per step and mean return);
 //! - `gait.gif`: the promoted policy walking (`worker render`, run from the `worker` binary
@@ -37,6 +39,15 @@ pub use text::{budget_text, eval_text};
 
 /// Metrics drawn as learning curves, in the order they are looked for.
 pub const CURVE_METRICS: [&str; 3] = ["mean_step_reward", "mean_return", "eval/score"];
+
+/// The per-step reward terms, logged every epoch, that the torque weight is read against
+/// ([`ReportCell::torque_share`]).
+pub const SHARE_METRICS: [&str; 2] = ["reward/torques", "reward/tracking_lin_vel"];
+
+/// A torque penalty under this share of the tracking reward shapes a cell's reward by less
+/// than 1%: at such w2 the weights give nearly the same reward, and cells differ by their
+/// runs' spread more than by w2.
+pub const NEGLIGIBLE_TORQUE_SHARE: f64 = 0.01;
 
 /// One cell of the sweep with its score (if it has one).
 #[derive(Debug, Clone)]
@@ -92,6 +103,20 @@ impl ReportCell {
                 .curves
                 .get("mean_step_reward")
                 .is_some_and(|c| !c.is_empty() && c.iter().all(|&(_, v)| v == 0.0))
+    }
+
+    /// How much the torque penalty weighs against velocity tracking in the cell's training:
+    /// the mean over its logged epochs of the torque penalty per step (its magnitude) over
+    /// the mean tracking reward per step. The paper contrasts these two terms (w2 against
+    /// w1); this says where on the grid the contrast exists. `None` without both metrics or
+    /// without a positive tracking reward.
+    pub fn torque_share(&self) -> Option<f64> {
+        let mean = |name: &str| {
+            let c = self.curves.get(name).filter(|c| !c.is_empty())?;
+            Some(c.iter().map(|p| p.1).sum::<f64>() / c.len() as f64)
+        };
+        let (torque, track) = (mean(SHARE_METRICS[0])?, mean(SHARE_METRICS[1])?);
+        (track > 0.0).then(|| torque.abs() / track)
     }
 
     /// The composite score, if the cell has a finite one.
@@ -251,6 +276,21 @@ impl ReportData {
             .collect()
     }
 
+    /// The columns (w2 indices) of terrain `t` where the torque penalty is negligible: some
+    /// cell there has a [`ReportCell::torque_share`] and every such cell's is under
+    /// [`NEGLIGIBLE_TORQUE_SHARE`].
+    pub fn negligible_torque_columns(&self, t: usize) -> Vec<usize> {
+        let mut cols: BTreeMap<usize, bool> = BTreeMap::new();
+        for c in self.cells_of(t) {
+            if let (Some((_, j)), Some(share)) = (c.grid(), c.torque_share()) {
+                *cols.entry(j).or_insert(true) &= share < NEGLIGIBLE_TORQUE_SHARE;
+            }
+        }
+        cols.into_iter()
+            .filter_map(|(j, small)| small.then_some(j))
+            .collect()
+    }
+
     /// Cells `(w1_index, w2_index)` whose score is in the top quartile of their terrain's
     /// scored cells on every terrain, and per grid position the number of terrains where
     /// it is in the top quartile.
@@ -351,7 +391,12 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> Result<ReportData> {
         c.rung = deepest.get(&c.id).copied();
     }
 
-    let names = CURVE_METRICS.map(|n| format!("'{n}'")).join(", ");
+    let names = CURVE_METRICS
+        .iter()
+        .chain(&SHARE_METRICS)
+        .map(|n| format!("'{n}'"))
+        .collect::<Vec<_>>()
+        .join(", ");
     let sql = format!(
         "SELECT m.cell_id, m.epoch, m.name, m.value FROM epoch_metrics m JOIN cells c ON c.id = m.cell_id \
          WHERE c.sweep_id = $1 AND m.name IN ({names}) ORDER BY m.cell_id, m.epoch"

@@ -219,6 +219,68 @@ fn points_never_rewarded_are_named_and_marked() {
 }
 
 #[test]
+fn the_torque_share_says_where_w2_shapes_the_reward() {
+    let mut d = synthetic();
+    let track = 0.05;
+    for c in &mut d.cells {
+        // |torque penalty| / tracking = 10^(w2 + 3): 1e-7 at w2 = -10, 10 at -2.
+        let torque = -track * 10f64.powf(c.w2 + 3.0);
+        c.curves.insert(
+            "reward/torques".into(),
+            (1..=20).map(|e| (e, torque)).collect(),
+        );
+        c.curves.insert(
+            "reward/tracking_lin_vel".into(),
+            (1..=20).map(|e| (e, track)).collect(),
+        );
+    }
+    let at = |d: &ReportData, t: usize, p: (usize, usize)| {
+        d.cells
+            .iter()
+            .position(|c| c.terrain_index == t && c.grid() == Some(p))
+            .unwrap()
+    };
+    let k = at(&d, 0, (1, 3));
+    assert!((d.cells[k].torque_share().unwrap() - 10.0).abs() < 1e-9);
+    // Flat: w2 -10 (1e-7) and -7.33 (5e-5) are under 1%, -4.67 (0.02) is not.
+    assert_eq!(d.negligible_torque_columns(0), vec![0, 1]);
+    // Rough: one cell of column -7.33 whose penalty weighs half the tracking.
+    let k = at(&d, 1, (2, 1));
+    d.cells[k]
+        .curves
+        .insert("reward/torques".into(), vec![(1, -track), (2, 0.0)]);
+    assert_eq!(d.negligible_torque_columns(1), vec![0]);
+    // No tracking reward: no share.
+    let k = at(&d, 1, (0, 2));
+    d.cells[k]
+        .curves
+        .insert("reward/tracking_lin_vel".into(), vec![(1, 0.0)]);
+    assert_eq!(d.cells[k].torque_share(), None);
+
+    let dir = tempfile::tempdir().unwrap();
+    let gif = GifStatus::NotMade("--no-gif".into());
+    let files = write_report(&d, dir.path(), &gif).unwrap().files;
+    for t in ["flat", "rough"] {
+        let png = dir.path().join(format!("torque_share_{t}.png"));
+        assert!(files.contains(&png));
+        assert_png(&png, 700, 500);
+    }
+    assert_svg(
+        &dir.path().join("torque_share_flat.svg"),
+        &[
+            "log10 of torque penalty / tracking reward",
+            "1e-7",
+            "5e-5",
+            "10",
+        ],
+    );
+    let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
+    assert!(html.contains("torque_share_rough.png"));
+    assert!(html.contains("tracking reward (mean over training, every cell): w2 = -10, -7.33. "));
+    assert!(html.contains("tracking reward (mean over training, every cell): w2 = -10. "));
+}
+
+#[test]
 fn every_picture_is_a_whole_png_and_svg() {
     let d = synthetic();
     let dir = tempfile::tempdir().unwrap();

@@ -26,6 +26,9 @@ pub(super) struct Heatmap<'a> {
     /// Cells labelled "no reward" under their value ([`crate::report::ReportCell::never_rewarded`]).
     pub(super) unrewarded: Vec<(usize, usize)>,
     pub(super) integer: bool,
+    /// The values are log10 of a ratio: the colours follow the log, a cell's text is the
+    /// ratio itself.
+    pub(super) log10: bool,
 }
 
 impl Heatmap<'_> {
@@ -53,6 +56,8 @@ impl Heatmap<'_> {
     fn fmt(&self, v: f64) -> String {
         if self.integer {
             format!("{}", v.round() as i64)
+        } else if self.log10 {
+            fmt_ratio(10f64.powf(v))
         } else {
             fmt_value(v)
         }
@@ -278,5 +283,18 @@ impl Figure for Heatmap<'_> {
             ))?;
         }
         Ok(())
+    }
+}
+
+/// A ratio to two significant digits, in powers of ten when it is small or large.
+fn fmt_ratio(x: f64) -> String {
+    if x != 0.0 && !(0.01..1e4).contains(&x) {
+        format!("{x:.0e}")
+    } else if x >= 10.0 {
+        format!("{x:.0}")
+    } else if x >= 1.0 {
+        format!("{x:.1}")
+    } else {
+        format!("{x:.2}")
     }
 }

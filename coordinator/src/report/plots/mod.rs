@@ -288,6 +288,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
             marks: vec![],
             unrewarded: d.unrewarded_points(t),
             integer: false,
+            log10: false,
         };
         files.extend(save(&heat, out, &format!("score_{s}"))?);
         let falls = Heatmap {
@@ -310,6 +311,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
             marks: vec![],
             unrewarded: vec![],
             integer: false,
+            log10: false,
         };
         files.extend(save(&falls, out, &format!("fall_rate_{s}"))?);
         let surf = Surface {
@@ -321,6 +323,27 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
             values: d.grid_mean(t, |c| c.value()),
         };
         files.extend(save(&surf, out, &format!("surface_{s}"))?);
+        let share = d.grid_mean(t, |c| c.torque_share().filter(|v| *v > 0.0).map(f64::log10));
+        if share.iter().flatten().any(Option::is_some) {
+            let heat = Heatmap {
+                title: format!("Torque penalty against tracking reward on {terrain}: {who}"),
+                subtitle: format!(
+                    "mean over training of |torque penalty| / tracking reward per step; under {:.0}%, w2 hardly shapes the reward",
+                    100.0 * super::NEGLIGIBLE_TORQUE_SHARE
+                ),
+                bar_label: "log10 of torque penalty / tracking reward".into(),
+                w1: &d.w1_values,
+                w2: &d.w2_values,
+                values: share,
+                notes: notes(d, t),
+                better: Better::None,
+                marks: vec![],
+                unrewarded: d.unrewarded_points(t),
+                integer: false,
+                log10: true,
+            };
+            files.extend(save(&heat, out, &format!("torque_share_{s}"))?);
+        }
         for (name, label, higher) in COMPONENTS {
             let heat = Heatmap {
                 title: format!("Score component \u{201c}{name}\u{201d} on {terrain}: {who}"),
@@ -338,6 +361,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
                 marks: vec![],
                 unrewarded: vec![],
                 integer: false,
+                log10: false,
             };
             files.extend(save(&heat, out, &format!("{name}_{s}"))?);
         }
@@ -366,6 +390,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
             marks: cells,
             unrewarded: vec![],
             integer: true,
+            log10: false,
         };
         files.extend(save(&heat, out, "overlap")?);
     }
