@@ -186,27 +186,29 @@ impl Figure for Heatmap<'_> {
                 }
             }
         }
+        // A small label under a cell's value ("all terrains", "no reward"), inked against
+        // the cell's colour.
+        let mut label_under = |i: usize, j: usize, text: &str| {
+            let bg = self.values[i][j].map_or(RGBColor(225, 225, 225), |v| colormap(norm(v)));
+            let small = TextStyle::from((SANS, (font * 0.7).max(10.0)).into_font())
+                .color(if luminance(bg) < 0.5 { &WHITE } else { &BLACK })
+                .pos(Pos::new(HPos::Center, VPos::Center));
+            chart
+                .draw_series(std::iter::once(
+                    EmptyElement::at(at(j, i))
+                        + Text::new(text.to_string(), (0, (cell_h * 0.3) as i32), small),
+                ))
+                .map(|_| ())
+        };
+        for &(i, j) in &self.unrewarded {
+            label_under(i, j, "no reward")?;
+        }
+        for &(i, j) in &self.marks {
+            label_under(i, j, "all terrains")?;
+        }
         for &(i, j) in &self.marks {
             let style = ShapeStyle::from(&RGBColor(220, 20, 60)).stroke_width(4);
             chart.draw_series(std::iter::once(Rectangle::new(corners(i, j), style)))?;
-            let bg = self.values[i][j].map_or(RGBColor(225, 225, 225), |v| colormap(norm(v)));
-            let small = TextStyle::from((SANS, (font * 0.7).max(10.0)).into_font())
-                .color(if luminance(bg) < 0.5 { &WHITE } else { &BLACK })
-                .pos(Pos::new(HPos::Center, VPos::Center));
-            chart.draw_series(std::iter::once(
-                EmptyElement::at(at(j, i))
-                    + Text::new("all terrains", (0, (cell_h * 0.3) as i32), small),
-            ))?;
-        }
-        for &(i, j) in &self.unrewarded {
-            let bg = self.values[i][j].map_or(RGBColor(225, 225, 225), |v| colormap(norm(v)));
-            let small = TextStyle::from((SANS, (font * 0.7).max(10.0)).into_font())
-                .color(if luminance(bg) < 0.5 { &WHITE } else { &BLACK })
-                .pos(Pos::new(HPos::Center, VPos::Center));
-            chart.draw_series(std::iter::once(
-                EmptyElement::at(at(j, i))
-                    + Text::new("no reward", (0, (cell_h * 0.3) as i32), small),
-            ))?;
         }
         if let Some((i, j, v)) = best {
             let red = RGBColor(220, 20, 60);
