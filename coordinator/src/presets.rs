@@ -83,7 +83,10 @@ mod tests {
 
     #[test]
     fn the_study_specs_are_table_1s_grids_on_rough_and_stairs() {
-        for (robot, w2, cells) in [("anymal", -10.0, 56), ("heavy", -20.0, 32)] {
+        // The ANYmal recording predates stop_unrewarded; the heavy one stops its cells at
+        // w2 = -2 (never rewarded) at a tenth of 1,200 epochs.
+        for (robot, w2, cells, stop_after) in [("anymal", -10.0, 56, 0), ("heavy", -20.0, 32, 120)]
+        {
             let path = format!("{}/../studies/{robot}.toml", env!("CARGO_MANIFEST_DIR"));
             let spec = SweepSpec::from_toml(&std::fs::read_to_string(&path).unwrap()).unwrap();
             let r = resolve(&spec).unwrap();
@@ -101,6 +104,7 @@ mod tests {
                 r.finalists,
                 Some(gaitsweep_core::finalists::Finalists { top: 4, seeds: 3 })
             );
+            assert_eq!(r.stop_unrewarded_after(), stop_after, "{path}");
         }
     }
 

@@ -66,6 +66,7 @@ impl From<pb::SweepSpec> for SweepSpec {
                     seeds: s.finalists_seeds,
                 },
             ),
+            stop_unrewarded: (s.stop_unrewarded != 0.0).then_some(s.stop_unrewarded),
         }
     }
 }
@@ -119,6 +120,7 @@ impl From<&ResolvedSpec> for pb::SweepSpec {
             finalists_top: s.finalists.map_or(0, |f| f.top),
             finalists_seeds: s.finalists.map_or(0, |f| f.seeds),
             search: Some(search_to_wire(&s.search, s.budget_epochs())),
+            stop_unrewarded: s.stop_unrewarded.unwrap_or(0.0),
         }
     }
 }
@@ -341,6 +343,7 @@ pub fn cell_task(cell: &CellRecord, spec: &ResolvedSpec) -> pb::CellTask {
         eval_every: eval.every,
         eval_levels: eval.levels.iter().map(|l| u32::from(*l)).collect(),
         score: eval.score.to_string(),
+        stop_unrewarded_after: spec.stop_unrewarded_after(),
     }
 }
 
@@ -606,6 +609,7 @@ mod eval_tests {
                 last_error: None,
             };
             let task = cell_task(&cell, &spec);
+            assert_eq!(task.stop_unrewarded_after, 0, "off unless the spec asks");
             let e = task_eval(&task, kind).unwrap();
             assert_eq!(e, spec.eval_for(terrain));
             assert_eq!((e.robots, e.levels, e.every), (32, levels, 5));
@@ -618,5 +622,28 @@ mod eval_tests {
         assert!(task_eval(&bad, TerrainKind::Flat)
             .unwrap_err()
             .contains("eq5"));
+        let stopping = ResolvedSpec {
+            stop_unrewarded: Some(0.25),
+            ..spec.clone()
+        };
+        let cell = CellRecord {
+            id: CellId(1),
+            sweep_id: SweepId(1),
+            terrain_index: 0,
+            terrain: "rough".into(),
+            place: Place::point(0, 0),
+            w1: 1.0,
+            w2: -6.0,
+            seed: 1,
+            replicate: 0,
+            state: CellState::Queued,
+            attempts: 0,
+            epochs_done: 0,
+            target_epochs: 10,
+            score: None,
+            rung_score: None,
+            last_error: None,
+        };
+        assert_eq!(cell_task(&cell, &stopping).stop_unrewarded_after, 3);
     }
 }

@@ -127,6 +127,10 @@ pub struct SweepSpec {
     /// seeds and promote among them (default: none).
     #[serde(default)]
     pub finalists: Option<crate::finalists::FinalistsSpec>,
+    /// Stop a cell that was never rewarded (mean reward exactly 0 at every epoch) once it
+    /// has trained this fraction of its epochs, in (0, 1) (default: off).
+    #[serde(default)]
+    pub stop_unrewarded: Option<f64>,
 }
 
 /// A validated spec with every default filled in: what the coordinator stores and runs.
@@ -169,6 +173,10 @@ pub struct ResolvedSpec {
     /// The finalist stage, if any (specs stored before it read as none).
     #[serde(default)]
     pub finalists: Option<crate::finalists::Finalists>,
+    /// The fraction of its epochs after which a cell never rewarded stops
+    /// ([`ResolvedSpec::stop_unrewarded_after`]); none: every cell trains to the end.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stop_unrewarded: Option<f64>,
 }
 
 /// One cell of an expanded grid.
@@ -434,6 +442,17 @@ impl SweepSpec {
                 "successive halving (search.method asha, or cmaes or genetic with min_epochs) ranks single training runs: use seeds = 1 with it".into(),
             );
         }
+        if let Some(f) = self.stop_unrewarded {
+            if !(f.is_finite() && f > 0.0 && f < 1.0) {
+                problems.push(format!(
+                    "stop_unrewarded is {f}: give the fraction of a cell's epochs after which a cell never rewarded stops, between 0 and 1 (e.g. 0.1), or leave it out"
+                ));
+            } else if search.halving().is_some() {
+                problems.push(
+                    "stop_unrewarded stops cells before successive halving's rungs could rank them: leave it out, or search without min_epochs".into(),
+                );
+            }
+        }
         if replicates == 0 || replicates > MAX_REPLICATES {
             problems.push(format!(
                 "seeds is {replicates}: use 1 to {MAX_REPLICATES} replicates per grid point"
@@ -487,6 +506,7 @@ impl SweepSpec {
             },
             search,
             finalists,
+            stop_unrewarded: self.stop_unrewarded,
         })
     }
 }
@@ -503,6 +523,14 @@ impl ResolvedSpec {
             Ok(TerrainKind::Flat) => vec![0],
             _ => self.eval.levels.clone(),
         }
+    }
+
+    /// The epoch at which a cell whose mean reward was exactly 0 at every epoch so far stops
+    /// and is scored: `stop_unrewarded` of the epochs, rounded up, at least 1 (0: never).
+    pub fn stop_unrewarded_after(&self) -> u32 {
+        self.stop_unrewarded.map_or(0, |f| {
+            ((f * f64::from(self.epochs)).ceil() as u32).clamp(1, self.epochs.max(1))
+        })
     }
 
     /// How a cell on `terrain` is scored: the sweep's evaluation with that terrain's levels.

@@ -625,3 +625,52 @@ fn every_search_method_crosses_the_wire_as_its_own_variant_and_comes_back() {
         Search::Grid
     );
 }
+
+#[test]
+fn stop_unrewarded_resolves_to_an_epoch_crosses_the_wire_and_refuses_nonsense() {
+    let base = "robot = \"anymal\"\nterrains = [\"rough\"]\npreset_grid = true\nepochs = 1200\n";
+    let r = SweepSpec::from_toml(&format!("{base}stop_unrewarded = 0.1\n"))
+        .unwrap()
+        .resolve_with(ok)
+        .unwrap();
+    assert_eq!(r.stop_unrewarded, Some(0.1));
+    assert_eq!(r.stop_unrewarded_after(), 120);
+    let back = crate::convert::resolved_from_wire(crate::pb::SweepSpec::from(&r)).unwrap();
+    assert_eq!(back.stop_unrewarded_after(), 120);
+    // Rounded up, and never 0 (which would mean "off").
+    let tiny = SweepSpec::from_toml(
+        "robot = \"anymal\"\nterrains = [\"flat\"]\npreset_grid = true\nepochs = 7\nstop_unrewarded = 0.01\n",
+    )
+    .unwrap()
+    .resolve_with(ok)
+    .unwrap();
+    assert_eq!(tiny.stop_unrewarded_after(), 1);
+
+    // Off by default, and a spec stored without it reads (and is stored) as before.
+    let off = SweepSpec::from_toml(base)
+        .unwrap()
+        .resolve_with(ok)
+        .unwrap();
+    assert_eq!(off.stop_unrewarded_after(), 0);
+    let json = serde_json::to_string(&off).unwrap();
+    assert!(!json.contains("stop_unrewarded"), "{json}");
+    assert_eq!(crate::pb::SweepSpec::from(&off).stop_unrewarded, 0.0);
+
+    let err = |extra: &str| {
+        SweepSpec::from_toml(&format!("{base}{extra}"))
+            .unwrap()
+            .resolve_with(ok)
+            .unwrap_err()
+            .to_string()
+    };
+    for bad in ["0.0", "1.0", "-0.5", "nan"] {
+        assert!(
+            err(&format!("stop_unrewarded = {bad}\n")).contains("between 0 and 1"),
+            "{bad}"
+        );
+    }
+    assert!(err(
+        "stop_unrewarded = 0.1\n[search]\nmethod = \"asha\"\nmin_epochs = 100\nreduction = 3\n"
+    )
+    .contains("successive halving"));
+}

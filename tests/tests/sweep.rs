@@ -563,6 +563,61 @@ async fn replicates_train_each_point_k_times_and_promote_the_best_mean() {
     );
 }
 
+/// `stop_unrewarded`: the heavy robot at w2 = -2 pays ~1,800 a step for torque, so every
+/// step's reward is clipped to 0 and its cell stops at a quarter of its epochs, scored there
+/// with its checkpoint; the rewarded cell beside it trains every epoch; the sweep finishes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_cell_never_rewarded_stops_early_and_the_sweep_finishes() {
+    let _g = heavy().await;
+    let tmp = tempfile::tempdir().unwrap();
+    let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
+    let mut c = coord.sweeps().await;
+    let spec = "name = \"unrewarded\"\nrobot = \"heavy\"\nterrains = [\"flat\"]\n\
+                w1 = { values = [12.0] }\nw2 = { values = [-20.0, -2.0] }\nagents_per_cell = 8\n\
+                epochs = 8\ncheckpoint_every = 4\nseed = 3\nstop_unrewarded = 0.25\n\
+                eval = { robots = 2, seconds = 1.0 }\n";
+    let sweep = create(&mut c, spec.to_string()).await;
+    let w = start_worker(tmp.path(), &coord.url(), "a");
+    let done = wait_done(&coord, sweep.sweep_id, SWEEP_TIMEOUT, &[&coord.proc, &w]).await;
+    assert_eq!(
+        (done.state, done.cells_done),
+        (pb::SweepState::Done as i32, 2)
+    );
+    let db = coord.db().await;
+    let rows: Vec<(f64, i64, i64, Option<String>, f64, i64)> = sqlx::query_as(
+        "SELECT c.w2, c.epochs_done, s.epochs, s.final_checkpoint_sha256, \
+         (SELECT MAX(value) FROM epoch_metrics m WHERE m.cell_id = c.id AND m.name = 'mean_step_reward'), \
+         (SELECT COUNT(DISTINCT epoch) FROM epoch_metrics m WHERE m.cell_id = c.id) \
+         FROM cells c JOIN scores s ON s.cell_id = c.id ORDER BY c.w2",
+    )
+    .fetch_all(&db)
+    .await
+    .unwrap();
+    assert_eq!(rows.len(), 2, "{rows:?}");
+    let (rewarded, unrewarded) = (&rows[0], &rows[1]);
+    assert_eq!(
+        (rewarded.0, rewarded.1, rewarded.2, rewarded.5),
+        (-20.0, 8, 8, 8)
+    );
+    assert!(rewarded.4 > 0.0, "{rows:?}");
+    assert_eq!(
+        (unrewarded.0, unrewarded.1, unrewarded.2, unrewarded.5),
+        (-2.0, 2, 2, 2),
+        "stopped after 0.25 x 8 epochs"
+    );
+    assert_eq!(unrewarded.4, 0.0);
+    let sha = unrewarded
+        .3
+        .as_ref()
+        .expect("the stopped cell's checkpoint is stored");
+    let epoch: i64 = sqlx::query_scalar("SELECT epoch FROM cell_checkpoints WHERE sha256 = $1")
+        .bind(sha)
+        .fetch_one(&db)
+        .await
+        .unwrap();
+    assert_eq!(epoch, 2);
+}
+
 /// `coordinator show` of a sweep: whether it succeeded, and what it printed.
 fn show(coord: &Coord, sweep: i64) -> (bool, String) {
     let out = std::process::Command::new(bin("coordinator"))

@@ -105,6 +105,15 @@ pub struct CheckpointMeta {
     /// Per-robot curriculum levels at the checkpoint (empty with a fixed difficulty).
     #[serde(default)]
     pub levels: Vec<u8>,
+    /// Whether any epoch up to the checkpoint had a mean reward other than 0. Checkpoints
+    /// written before it was recorded read as true: unknown counts as rewarded, so a
+    /// resumed run is never stopped as unrewarded on a guess.
+    #[serde(default = "rewarded_unknown")]
+    pub rewarded: bool,
+}
+
+fn rewarded_unknown() -> bool {
+    true
 }
 
 /// A checkpoint read from disk and checked to be whole.

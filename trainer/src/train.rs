@@ -52,6 +52,9 @@ pub struct CellRunConfig {
     /// How the policy is scored: at the end, and every `eval.every` epochs as well (logged
     /// as `eval/*`).
     pub eval: EvalSettings,
+    /// Stop at this epoch, and score the policy there, when no epoch up to it had a mean
+    /// reward other than 0 (0: train to `epochs`).
+    pub stop_unrewarded_after: u32,
 }
 
 /// Per-epoch metrics: every reward term mean (`reward/<term>`), losses, KL, learning rate,
@@ -86,6 +89,8 @@ pub struct CellOutcome {
     pub final_checkpoint: PathBuf,
     /// Epochs completed.
     pub epochs: u32,
+    /// The run stopped at `stop_unrewarded_after` because no epoch had been rewarded.
+    pub stopped_unrewarded: bool,
 }
 
 /// The preset's PPO table as the trainer's parameters.
@@ -310,6 +315,7 @@ pub fn train_cell(cfg: &CellRunConfig, observer: &mut dyn TrainObserver) -> Resu
         optimizer: OptimizerMeta { kind: "adam".into(), learning_rate: 0.0, step: 0, betas: [0.0; 2], eps: 0.0 },
         rng: RngMeta { scheme: "sim and trainer generator seeded from boundary_seed(seed, epoch) at the start and at each resumption; checkpoints never reset robots".into(), resume_seed: 0 },
         levels: Vec::new(),
+        rewarded: false,
     };
 
     let mut ppo = Ppo::new(
@@ -335,14 +341,15 @@ pub fn train_cell(cfg: &CellRunConfig, observer: &mut dyn TrainObserver) -> Resu
         ppo.set_mirror(&m.obs, &m.act);
     }
     let mut start = 0;
-    let mut last_ckpt = None;
+    let mut last_ckpt: Option<(u32, PathBuf)> = None;
     let mut sim = SimEnv { env };
     if let Some(path) = &cfg.resume_from {
         let ckpt = Checkpoint::load(path)?;
         ckpt.check_matches(&meta)?;
         ckpt.restore(&mut ppo)?;
         start = ckpt.meta.epoch;
-        last_ckpt = Some(path.clone());
+        meta.rewarded = ckpt.meta.rewarded;
+        last_ckpt = Some((start, path.clone()));
         if !ckpt.meta.levels.is_empty() && !sim.set_levels(&ckpt.meta.levels) {
             tracing::warn!(cell = %label, "curriculum levels not restored: the resumed run restarts the curriculum");
         }
@@ -362,6 +369,7 @@ pub fn train_cell(cfg: &CellRunConfig, observer: &mut dyn TrainObserver) -> Resu
     };
 
     let mut last_eval: Option<(u32, GaitScore)> = None;
+    let mut stopped_unrewarded = false;
     while runner.epoch < cfg.epochs {
         if observer.should_stop() {
             let path = save(&runner, &mut meta)?;
@@ -372,7 +380,19 @@ pub fn train_cell(cfg: &CellRunConfig, observer: &mut dyn TrainObserver) -> Resu
                 checkpoint: path,
             });
         }
+        if cfg.stop_unrewarded_after > 0
+            && runner.epoch >= cfg.stop_unrewarded_after
+            && !meta.rewarded
+        {
+            // Every step's reward was clipped to 0 (only_positive_rewards): the weights teach
+            // this cell nothing, and the rest of its budget would not change that.
+            tracing::info!(cell = %label, epoch = runner.epoch, of = cfg.epochs,
+                "never rewarded: stopped, scored here");
+            stopped_unrewarded = true;
+            break;
+        }
         let stats = runner.run_epoch()?;
+        meta.rewarded |= stats.mean_step_reward != 0.0;
         let mut m = epoch_metrics(&stats, t0.elapsed().as_secs_f64());
         if cfg.eval.every > 0 && runner.epoch % cfg.eval.every == 0 {
             let te = Instant::now();
@@ -387,12 +407,12 @@ pub fn train_cell(cfg: &CellRunConfig, observer: &mut dyn TrainObserver) -> Resu
         if runner.epoch % cfg.checkpoint_every == 0 || runner.epoch == cfg.epochs {
             let path = save(&runner, &mut meta)?;
             observer.on_checkpoint(runner.epoch, &path);
-            last_ckpt = Some(path);
+            last_ckpt = Some((runner.epoch, path));
         }
     }
     let final_checkpoint = match last_ckpt {
-        Some(p) => p,
-        None => {
+        Some((epoch, p)) if epoch == runner.epoch => p,
+        _ => {
             let path = save(&runner, &mut meta)?;
             observer.on_checkpoint(runner.epoch, &path);
             path
@@ -413,5 +433,6 @@ pub fn train_cell(cfg: &CellRunConfig, observer: &mut dyn TrainObserver) -> Resu
         score,
         final_checkpoint,
         epochs: runner.epoch,
+        stopped_unrewarded,
     })
 }

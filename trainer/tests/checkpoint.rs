@@ -58,6 +58,7 @@ fn meta(robot: &str) -> CheckpointMeta {
             resume_seed: 0,
         },
         levels: vec![],
+        rewarded: false,
     }
 }
 
@@ -154,6 +155,13 @@ fn checkpoint_round_trip_and_sidecar() {
     ckpt.restore(&mut back).unwrap();
     assert_eq!(state(&back), state(&r.ppo));
     assert_eq!(back.normalizer, r.ppo.normalizer);
+
+    // A checkpoint written before `rewarded` was recorded reads as rewarded: a resumed run
+    // is never stopped as unrewarded on a guess.
+    let mut old = serde_json::to_value(&ckpt.meta).unwrap();
+    old.as_object_mut().unwrap().remove("rewarded");
+    let old: CheckpointMeta = serde_json::from_value(old).unwrap();
+    assert!(old.rewarded);
 }
 
 #[test]

@@ -57,6 +57,7 @@ fn cfg(out: &Path, epochs: u32, resume: Option<PathBuf>) -> CellRunConfig {
             score: ScoreVariant::Eq4,
             every: 0,
         },
+        stop_unrewarded_after: 0,
     }
 }
 
@@ -385,4 +386,59 @@ fn a_rough_cell_is_scored_as_the_mean_over_its_evaluation_levels() {
         (b.score - (l7.score - l7.progress + l7.progress_bounded)).abs() < 1e-9,
         "{b:?} vs {l7:?}"
     );
+}
+
+/// The heavy robot at w2 = -2 pays ~1,800 a step for torque against at most ~0.003 for
+/// tracking: only_positive_rewards clips every step to 0, so the cell is never rewarded
+/// and stops where it is told to, with a checkpoint and a score there. At (12, -20) the
+/// robot is rewarded and trains every epoch.
+#[test]
+fn a_cell_never_rewarded_stops_early_and_a_rewarded_one_does_not() {
+    let run = |w1: f64, w2: f64, out: &Path, resume: Option<PathBuf>, epochs: u32| {
+        let mut c = cfg(out, epochs, resume);
+        c.robot = "heavy".into();
+        c.w1 = w1;
+        c.w2 = w2;
+        c.checkpoint_every = 2;
+        c.stop_unrewarded_after = 3;
+        let mut obs = Collect::default();
+        let out = train_cell(&c, &mut obs).unwrap();
+        (out, obs)
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (out, obs) = run(2.0, -2.0, &dir.path().join("unrewarded"), None, 8);
+    assert!(out.stopped_unrewarded);
+    assert_eq!(out.epochs, 3);
+    assert_eq!(obs.epochs.len(), 3);
+    assert!(obs
+        .epochs
+        .iter()
+        .all(|m| m.values["mean_step_reward"] == 0.0));
+    // Epoch 3 is no checkpoint boundary: the stop writes one, and it is the final one.
+    assert_eq!(obs.checkpoints.last().unwrap().0, 3);
+    assert_eq!(out.final_checkpoint, obs.checkpoints.last().unwrap().1);
+    let meta = gaitsweep_trainer::checkpoint::Checkpoint::load(&out.final_checkpoint)
+        .unwrap()
+        .meta;
+    assert!(!meta.rewarded);
+    assert!(out.score.score.is_finite());
+
+    // A run resumed from an unrewarded checkpoint before the stop stops at it.
+    let first = obs.checkpoints[0].clone();
+    assert_eq!(first.0, 2);
+    let (resumed, robs) = run(2.0, -2.0, &dir.path().join("resumed"), Some(first.1), 8);
+    assert!(resumed.stopped_unrewarded);
+    assert_eq!((resumed.epochs, robs.epochs.len()), (3, 1));
+
+    let (out, obs) = run(12.0, -20.0, &dir.path().join("rewarded"), None, 5);
+    assert!(!out.stopped_unrewarded);
+    assert_eq!((out.epochs, obs.epochs.len()), (5, 5));
+    assert!(obs
+        .epochs
+        .iter()
+        .any(|m| m.values["mean_step_reward"] > 0.0));
+    let meta = gaitsweep_trainer::checkpoint::Checkpoint::load(&out.final_checkpoint)
+        .unwrap()
+        .meta;
+    assert!(meta.rewarded);
 }

@@ -96,6 +96,10 @@ pub struct TrainArgs {
     /// distance).
     #[arg(long, default_value = "eq4")]
     pub score: gaitsweep_sim::ScoreVariant,
+    /// Stop at this epoch, scored there, if no epoch up to it had a mean reward other
+    /// than 0 (default: train every epoch).
+    #[arg(long)]
+    pub stop_unrewarded_after: Option<u32>,
     /// libtorch threads (default 1).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -208,6 +212,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
             score: a.score,
             every: a.eval_every.unwrap_or(0),
         },
+        stop_unrewarded_after: a.stop_unrewarded_after.unwrap_or(0),
     };
     let start = match &cfg.resume_from {
         Some(p) => {
@@ -220,6 +225,12 @@ pub fn train(a: TrainArgs) -> Result<()> {
     let mut obs = LocalObserver::new(&cfg.out_dir, start, cfg.epochs, a.quiet)?;
     let outcome = train::train_cell(&cfg, &mut obs)?;
     obs.bar.finish();
+    if outcome.stopped_unrewarded {
+        println!(
+            "never rewarded: stopped at epoch {} of {} (every step's reward was 0)",
+            outcome.epochs, cfg.epochs
+        );
+    }
     let s = &outcome.score;
     println!(
         "score {:.4} (track {:.3}, effort {:.3}, tilt {:.3}, progress {:.3}, bounded progress {:.3}); |v_cmd - v| {:.3} m/s, overspeed {:.3} m/s, fall rate {:.3}; checkpoint {}",

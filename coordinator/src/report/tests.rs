@@ -210,6 +210,15 @@ fn points_never_rewarded_are_named_and_marked() {
         "rough only"
     );
     assert!(html.contains("Points never rewarded: <b>1</b> (w1, w2) = (7, -2)."));
+    // A spec that stops such cells says where, in the budget the report, `show` and the
+    // live page print.
+    let mut spec = spec();
+    assert!(!budget_text(&spec).contains("never rewarded"));
+    spec.epochs = 1200;
+    spec.stop_unrewarded = Some(0.1);
+    assert!(budget_text(&spec).contains(
+        "up to 1200 PPO epochs per cell (every cell trains all its epochs; except a cell whose mean reward was 0 at every epoch, stopped and scored at epoch 120 by stop_unrewarded = 0.1), 1 seed"
+    ), "{}", budget_text(&spec));
     assert_eq!(
         html.matches("never rewarded: mean reward per step 0 at every epoch")
             .count(),
@@ -426,6 +435,7 @@ fn spec() -> ResolvedSpec {
         },
         search: Default::default(),
         finalists: None,
+        stop_unrewarded: None,
     }
 }
 

@@ -1,7 +1,7 @@
 //! A sweep's budget and evaluation in words, for the report, `show` and the live page.
 
 /// The budget a sweep was given, in words: robots and epochs per cell, how the search spends
-/// them, replicates, the evaluation rollout and any PPO overrides.
+/// them, where a cell never rewarded stops, replicates, the evaluation rollout and any PPO overrides.
 pub fn budget_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
     let search = gaitsweep_search::describe(spec).budget;
     let ppo = if spec.ppo_overrides.is_empty() {
@@ -20,8 +20,15 @@ pub fn budget_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
             f.top, f.seeds
         )
     });
+    let stop = match spec.stop_unrewarded {
+        Some(f) => format!(
+            "; except a cell whose mean reward was 0 at every epoch, stopped and scored at epoch {} by stop_unrewarded = {f}",
+            spec.stop_unrewarded_after()
+        ),
+        None => String::new(),
+    };
     format!(
-        "{} robots per cell, up to {} PPO epochs per cell ({search}), {} seed{} per grid point{finalists}; \
+        "{} robots per cell, up to {} PPO epochs per cell ({search}{stop}), {} seed{} per grid point{finalists}; \
          evaluation: {}{ppo}",
         spec.agents_per_cell,
         spec.epochs,

@@ -32,6 +32,7 @@ fn spec(w1: usize, w2: usize, terrains: Vec<TerrainKind>) -> ResolvedSpec {
         },
         search: Default::default(),
         finalists: None,
+        stop_unrewarded: None,
     }
 }
 

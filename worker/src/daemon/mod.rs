@@ -360,6 +360,7 @@ async fn run_lease<C: Coordinator>(ctx: &Ctx<C>, slot: u32, lease: pb::Lease) ->
         resume_from,
         ppo_overrides: task.ppo_overrides.clone(),
         eval: gaitsweep_core::convert::task_eval(&task, terrain).map_err(Error::Config)?,
+        stop_unrewarded_after: task.stop_unrewarded_after,
     };
     let (tx, mut rx) = mpsc::unbounded_channel();
     let bridge_tx = tx.clone();

@@ -252,6 +252,7 @@ fn scripted_trainer() -> TrainFn {
             score: Default::default(),
             final_checkpoint: last.expect("at least one epoch"),
             epochs: cfg.epochs,
+            stopped_unrewarded: false,
         })
     })
 }
@@ -292,6 +293,7 @@ fn done(path: &Path, epochs: u32) -> Event {
         score: Default::default(),
         final_checkpoint: path.to_path_buf(),
         epochs,
+        stopped_unrewarded: false,
     }))
 }
 
