@@ -293,9 +293,21 @@ impl ReportData {
 
     /// Cells `(w1_index, w2_index)` whose score is in the top quartile of their terrain's
     /// scored cells on every terrain, and per grid position the number of terrains where
-    /// it is in the top quartile.
+    /// it is in the top quartile (none where a terrain has not scored it yet: a 0 there
+    /// would claim a comparison that has not been made).
     pub fn overlap(&self) -> (Vec<(usize, usize)>, GridValues) {
         let mut count = vec![vec![Some(0.0); self.w2_values.len()]; self.w1_values.len()];
+        for (i, row) in count.iter_mut().enumerate() {
+            for (j, n) in row.iter_mut().enumerate() {
+                let scored_everywhere = (0..self.terrains.len()).all(|t| {
+                    self.cells_of(t)
+                        .any(|c| c.grid() == Some((i, j)) && c.value().is_some())
+                });
+                if !scored_everywhere {
+                    *n = None;
+                }
+            }
+        }
         for t in 0..self.terrains.len() {
             let mut v: Vec<f64> = self.cells_of(t).filter_map(|c| c.value()).collect();
             if v.is_empty() {

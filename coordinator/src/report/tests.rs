@@ -165,8 +165,15 @@ fn best_and_overlap_follow_the_scores() {
             );
         }
     }
-    // the cell failed on rough is never in the overlap
+    // the cell failed on rough is never in the overlap, and a point not scored on every
+    // terrain has no count (not 0: nothing was compared there)
     assert!(!cells.contains(&(2, 0)));
+    assert_eq!(count[2][0], None);
+    assert_eq!(count[0][3], None, "still running on flat");
+    assert!(count[1][1].is_some());
+    let dir = tempfile::tempdir().unwrap();
+    write_report(&d, dir.path(), &GifStatus::NotMade("--no-gif".into())).unwrap();
+    assert_svg(&dir.path().join("overlap.svg"), &["not scored on"]);
 }
 
 #[test]

@@ -230,6 +230,18 @@ impl Figure for Heatmap<'_> {
             ))?;
         }
 
+        if range.is_none() {
+            // No value yet, so no scale: the bar's place says so (each cell's note says why),
+            // rather than a 0-1 scale or a label over the grid's axis.
+            for (k, line) in ["no scored", "cells yet"].iter().enumerate() {
+                bar.draw(&Text::new(
+                    *line,
+                    (12, 40 + 26 * k as i32),
+                    (SANS, 20).into_font().color(&RED),
+                ))?;
+            }
+            return Ok(());
+        }
         // Colour bar with its scale.
         let mut cb = ChartBuilder::on(&bar)
             .margin_top(20)
@@ -277,13 +289,6 @@ impl Figure for Heatmap<'_> {
             [(0.0, lo), (1.0, hi)],
             ShapeStyle::from(&BLACK).stroke_width(1),
         )))?;
-        if range.is_none() {
-            main.draw(&Text::new(
-                "no scored cells yet",
-                (40, 40),
-                (SANS, 22).into_font().color(&RED),
-            ))?;
-        }
         Ok(())
     }
 }

@@ -384,8 +384,18 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
             bar_label: "terrains in the top quartile".into(),
             w1: &d.w1_values,
             w2: &d.w2_values,
+            notes: count
+                .iter()
+                .map(|row| {
+                    row.iter()
+                        .map(|n| match n {
+                            Some(_) => String::new(),
+                            None => "not scored on\nevery terrain".into(),
+                        })
+                        .collect()
+                })
+                .collect(),
             values: count,
-            notes: vec![],
             better: Better::None,
             marks: cells,
             unrewarded: vec![],

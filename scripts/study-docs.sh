@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# The pictures and data of a study recording, for the write-up (issue 39, item 5): reads the
+# committed snapshot studies/recordings/ROBOT (never the live data dir, never for writing),
+# writes the report's score heatmaps (peak marked), 3D surfaces, fall rates, tracking errors,
+# torque shares and the overlap across terrains to docs/study/ROBOT/, and each terrain's
+# grid as JSON to tests/data/study-ROBOT-TERRAIN.json once every point of it is scored.
+#
+#   scripts/study-docs.sh anymal
+#   scripts/study-docs.sh heavy
+#
+# Runs on a partial recording too (the pictures mark unscored cells "queued"; the JSON of an
+# unfinished terrain is skipped with a note). Look at every picture before committing it.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROBOT="${1:?usage: scripts/study-docs.sh ROBOT (a recording in studies/recordings/)}"
+SNAP="studies/recordings/$ROBOT"
+if [ ! -e "$SNAP/gaitsweep.sqlite" ] || [ ! -e "$SNAP/sweep.id" ]; then
+  echo "error: $SNAP has no recording (gaitsweep.sqlite and sweep.id); record one with scripts/record-sweep.sh" >&2
+  exit 1
+fi
+source scripts/setup.sh
+export GAITSWEEP_ROBOTS="${GAITSWEEP_ROBOTS:-$PWD/robots}"
+cargo build --release -p gaitsweep-coordinator --bins
+BIN="${CARGO_TARGET_DIR:-$PWD/target}/release"
+SWEEP="$(cat "$SNAP/sweep.id")"
+TMP="$(mktemp -d)"
+trap 'rm -rf "$TMP"' EXIT
+# The report reads a copy: opening the snapshot itself could leave SQLite files beside it.
+mkdir -p "$TMP/data"
+cp "$SNAP/gaitsweep.sqlite" "$TMP/data/"
+"$BIN/coordinator" report --data-dir "$TMP/data" "$SWEEP" --out "$TMP/report" --no-gif
+OUT="docs/study/$ROBOT"
+mkdir -p "$OUT"
+for f in "$TMP"/report/{score,surface,fall_rate,track,torque_share}_*.png "$TMP/report/overlap.png"; do
+  [ -e "$f" ] && cp "$f" "$OUT/"
+done
+echo "pictures: $(ls "$OUT" | tr '\n' ' ')in $OUT"
+TERRAINS="$(python3 -c 'import json, sqlite3, sys
+db = sqlite3.connect(f"file:{sys.argv[1]}?mode=ro", uri=True)
+spec = json.loads(db.execute("SELECT spec_json FROM sweeps WHERE id = ?", (int(sys.argv[2]),)).fetchone()[0])
+print(" ".join(spec["terrains"]))' "$TMP/data/gaitsweep.sqlite" "$SWEEP")"
+for t in $TERRAINS; do
+  json="tests/data/study-$ROBOT-$t.json"
+  if "$BIN/search-bench" export --data-dir "$TMP/data" --sweep "$SWEEP" --terrain "$t" > "$TMP/$t.json" 2> "$TMP/$t.err"; then
+    mv "$TMP/$t.json" "$json"
+    echo "grid of $t: $json"
+  else
+    echo "grid of $t not exported yet: $(tail -1 "$TMP/$t.err")"
+  fi
+done
