@@ -570,7 +570,7 @@ async fn replicates_train_each_point_k_times_and_promote_the_best_mean() {
 async fn a_cell_never_rewarded_stops_early_and_the_sweep_finishes() {
     let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
-    let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
+    let coord = Coord::start(tmp.path(), "127.0.0.1:0", &["--http", "127.0.0.1:0"]).await;
     let mut c = coord.sweeps().await;
     let spec = "name = \"unrewarded\"\nrobot = \"heavy\"\nterrains = [\"flat\"]\n\
                 w1 = { values = [12.0] }\nw2 = { values = [-20.0, -2.0] }\nagents_per_cell = 8\n\
@@ -616,6 +616,24 @@ async fn a_cell_never_rewarded_stops_early_and_the_sweep_finishes() {
         .await
         .unwrap();
     assert_eq!(epoch, 2);
+
+    // The live page's data marks the stopped cell, and only it, as never rewarded.
+    let http = std::fs::read_to_string(coord.data.join("http.addr")).unwrap();
+    let (status, body) = http_get(&http, &format!("/api/sweeps/{}", sweep.sweep_id), None);
+    assert!(status.contains("200"), "{status}");
+    let json: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    let marks: Vec<(f64, bool)> = json["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| {
+            (
+                c["w2"].as_f64().unwrap(),
+                c["never_rewarded"].as_bool().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(marks, [(-20.0, false), (-2.0, true)]);
 }
 
 /// `coordinator show` of a sweep: whether it succeeded, and what it printed.

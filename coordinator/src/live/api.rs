@@ -141,6 +141,8 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
                     "mean_vel_error": l.score.mean_vel_error,
                 })).collect::<Vec<_>>()).unwrap_or_default(),
                 "mean_return": last("mean_return"),
+                // Scored without ever being rewarded: its score says nothing of its weights.
+                "never_rewarded": c.never_rewarded(),
                 "last_error": c.last_error,
             })
         })
