@@ -9,6 +9,7 @@ the sweep evaluates during training, the evaluations at a few epochs. Reads the 
     python3 scripts/recording-progress.py DATA_DIR [EPOCH ...]   # default epochs 50 100 150 300
 """
 import json
+import math
 import sqlite3
 import sys
 
@@ -57,6 +58,10 @@ for sweep, name, spec_json, sweep_state in db.execute(
           f"{counts.get('failed', 0)} failed, {running} running"
           + (f", {pending} finalist replicates to come" if pending else "")
           + f"; {left:,} epochs left")
+    if spec.get("stop_unrewarded"):
+        stop = max(1, math.ceil(spec["stop_unrewarded"] * spec["epochs"]))
+        print(f"  at most: a cell never rewarded stops at epoch {stop} (stop_unrewarded = "
+              f"{spec['stop_unrewarded']}), so its remaining epochs are counted in full here")
     if trained:
         per = wall / trained
         workers = max(running, 1)
