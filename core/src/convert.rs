@@ -390,6 +390,8 @@ impl From<&CellRecord> for pb::Cell {
             replicate: c.replicate,
             target_epochs: c.target_epochs,
             rung_score: c.rung_score,
+            // Read from the cell's metrics, not its record: ListCells sets it.
+            never_rewarded: false,
         }
     }
 }

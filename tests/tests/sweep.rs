@@ -634,6 +634,15 @@ async fn a_cell_never_rewarded_stops_early_and_the_sweep_finishes() {
         })
         .collect();
     assert_eq!(marks, [(-20.0, false), (-2.0, true)]);
+    // So does `coordinator show` (ListCells), with its legend.
+    let (ok, text) = show(&coord, sweep.sweep_id);
+    assert!(ok, "{text}");
+    assert_eq!(
+        text.matches('!').count(),
+        2,
+        "the w2 = -2 point marked, and the legend: {text}"
+    );
+    assert!(text.contains("! never rewarded"), "{text}");
 }
 
 /// `coordinator show` of a sweep: whether it succeeded, and what it printed.

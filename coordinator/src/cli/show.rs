@@ -39,7 +39,7 @@ pub(crate) fn point_summary(cells: &[&pb::Cell]) -> Option<(gaitsweep_core::stat
 
 /// The sweep header and one score table per terrain: rows w1, columns w2 (log10 torque
 /// weight), each score with the fall rate of its evaluation beside it; `*` marks the best
-/// point over all terrains, `+` the best on that terrain. With replicates (`seeds = k`) a
+/// point over all terrains, `+` the best on that terrain, `!` a point never rewarded. With replicates (`seeds = k`) a
 /// point shows the mean of its replicates' scores ± the 95% confidence interval and the
 /// mean fall rate.
 pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
@@ -140,6 +140,7 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                 scores.iter().filter(|s| s.walks_at_every_level()).count()
             );
         }
+        let mut unrewarded = false;
         let _ = write!(o, "{:>10}", "w1 \\ w2");
         for w2 in &s.w2_values {
             let _ = write!(o, " {:>width$.3}", w2);
@@ -156,10 +157,28 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                 } else {
                     " "
                 };
-                let text = point_text(&here, replicates, mark);
+                // Beside the best marks, not instead: a best point never rewarded says most.
+                let never = here.iter().any(|c| c.score.is_some())
+                    && here
+                        .iter()
+                        .filter(|c| c.score.is_some())
+                        .all(|c| c.never_rewarded);
+                unrewarded |= never;
+                let mark = match (never, mark) {
+                    (true, " ") => "!".to_string(),
+                    (true, m) => format!("{m}!"),
+                    (false, m) => m.to_string(),
+                };
+                let text = point_text(&here, replicates, &mark);
                 let _ = write!(o, " {:>width$}", text);
             }
             o.push('\n');
+        }
+        if unrewarded {
+            let _ = writeln!(
+                o,
+                "! never rewarded: mean reward per step 0 at every epoch (every step's reward clipped to 0), so the score says nothing of the weights"
+            );
         }
     }
     if !evolutionary && spec.terrains.len() > 1 {
@@ -389,6 +408,49 @@ mod tests {
         assert!(text.contains("0.600±0.000/ 25%*"), "{text}");
         assert!(
             text.contains("mean score 0.6000 ± 0.0000 (95% CI, sd 0.0000, 2 replicates)"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn a_point_never_rewarded_is_marked_and_explained() {
+        let sweep = pb::Sweep {
+            sweep_id: 1,
+            spec: Some(pb::SweepSpec {
+                terrains: vec!["flat".into()],
+                seeds: 1,
+                ..Default::default()
+            }),
+            w1_values: vec![2.0, 8.0],
+            w2_values: vec![-6.0],
+            best_cell_id: 2,
+            ..Default::default()
+        };
+        let plain = [cell(1, 0, 0, 0.2), cell(2, 1, 0, 0.6)];
+        let text = render_show(&sweep, &plain);
+        assert!(!text.contains("never rewarded"), "{text}");
+        let marked = [
+            pb::Cell {
+                never_rewarded: true,
+                ..cell(1, 0, 0, 0.2)
+            },
+            cell(2, 1, 0, 0.6),
+        ];
+        let text = render_show(&sweep, &marked);
+        assert!(text.contains("0.2000/ 25%!"), "{text}");
+        assert!(text.contains("0.6000/ 25%*\n"), "{text}");
+        // The best point never rewarded keeps both marks.
+        let best = [
+            cell(1, 0, 0, 0.2),
+            pb::Cell {
+                never_rewarded: true,
+                ..cell(2, 1, 0, 0.6)
+            },
+        ];
+        let text = render_show(&sweep, &best);
+        assert!(text.contains("0.6000/ 25%*!"), "{text}");
+        assert!(
+            text.contains("! never rewarded: mean reward per step 0 at every epoch"),
             "{text}"
         );
     }

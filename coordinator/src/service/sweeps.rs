@@ -57,12 +57,16 @@ impl<S: Store> SweepService for SweepApi<S> {
         &self,
         req: Request<pb::ListCellsRequest>,
     ) -> Result<Response<pb::ListCellsResponse>, Status> {
-        let cells = self
-            .0
-            .store
-            .cells(SweepId(req.into_inner().sweep_id))
-            .await?;
-        let cells: Vec<pb::Cell> = cells.iter().map(Into::into).collect();
+        let sweep = SweepId(req.into_inner().sweep_id);
+        let cells = self.0.store.cells(sweep).await?;
+        let unrewarded = self.0.store.never_rewarded(sweep).await?;
+        let cells: Vec<pb::Cell> = cells
+            .iter()
+            .map(|c| pb::Cell {
+                never_rewarded: unrewarded.contains(&c.id),
+                ..c.into()
+            })
+            .collect();
         Ok(Response::new(pb::ListCellsResponse {
             points: gaitsweep_core::convert::point_results(&cells),
             cells,

@@ -152,6 +152,9 @@ pub trait Store: Send + Sync + 'static {
     fn sweep(&self, id: SweepId) -> impl Future<Output = Result<SweepRecord>> + Send;
     /// The cells of a sweep in grid order.
     fn cells(&self, id: SweepId) -> impl Future<Output = Result<Vec<CellRecord>>> + Send;
+    /// The sweep's done cells that were never rewarded: `mean_step_reward` logged, and 0 at
+    /// every epoch.
+    fn never_rewarded(&self, id: SweepId) -> impl Future<Output = Result<Vec<CellId>>> + Send;
     /// Cancels a sweep; returns it and the leases that were running.
     fn cancel_sweep(
         &self,

@@ -1219,6 +1219,40 @@ tokio::task_local! {
 }
 
 /// Runs every listed test on SQLite and on PostgreSQL (`sqlite::NAME`, `postgres::NAME`).
+async fn never_rewarded_cells_are_the_done_ones_with_zero_reward() {
+    let (_d, store, w) = setup().await;
+    let sweep = store
+        .create_sweep(&spec(3, 1, vec![TerrainKind::Flat]), 0)
+        .await
+        .unwrap();
+    // Cell 1: 0 at every epoch, done. Cell 2: rewarded once, done. Cell 3: 0 so far, running.
+    let first = store.cells(sweep.id).await.unwrap()[0].id;
+    for (k, rewards) in [[0.0, 0.0, 0.0], [0.0, 0.1, 0.0], [0.0, 0.0, 0.0]]
+        .iter()
+        .enumerate()
+    {
+        let g = store.lease_next(&w, 0, 1).await.unwrap().expect("lease");
+        assert_eq!(g.cell.id.0, first.0 + k as i64, "cells are leased in order");
+        let epochs: Vec<(u32, BTreeMap<String, f64>)> = rewards
+            .iter()
+            .enumerate()
+            .map(|(e, r)| (e as u32 + 1, [("mean_step_reward".to_string(), *r)].into()))
+            .collect();
+        store.record_progress(g.lease, &epochs).await.unwrap();
+        if k < 2 {
+            store
+                .report_result(g.lease, &score(0.5), 3, None, 2)
+                .await
+                .unwrap();
+        }
+    }
+    assert_eq!(
+        store.never_rewarded(sweep.id).await.unwrap(),
+        vec![first],
+        "the running cell is not judged yet, the rewarded one never"
+    );
+}
+
 macro_rules! conformance {
     ($($name:ident),* $(,)?) => {
         mod sqlite {
@@ -1258,4 +1292,5 @@ conformance!(
     each_level_of_an_evaluation_is_stored,
     the_readme_queries_run,
     old_candidates_move_to_their_own_columns,
+    never_rewarded_cells_are_the_done_ones_with_zero_reward,
 );
