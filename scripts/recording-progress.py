@@ -59,7 +59,7 @@ for sweep, name, spec_json, sweep_state in db.execute(
           + (f", {pending} finalist replicates to come" if pending else "")
           + f"; {left:,} epochs left")
     if spec.get("stop_unrewarded"):
-        stop = max(1, math.ceil(spec["stop_unrewarded"] * spec["epochs"]))
+        stop = max(1, math.ceil(spec["stop_unrewarded"] * spec["epochs"] - 1e-9))
         print(f"  at most: a cell never rewarded stops at epoch {stop} (stop_unrewarded = "
               f"{spec['stop_unrewarded']}), so its remaining epochs are counted in full here")
     if trained:

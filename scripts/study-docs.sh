@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The pictures and data of a study recording, for the write-up (issue 39, item 5): reads the
 # committed snapshot studies/recordings/ROBOT (never the live data dir, never for writing),
-# writes the report's score heatmaps (peak marked), 3D surfaces, fall rates, tracking errors,
-# torque shares and the overlap across terrains to docs/study/ROBOT/, and each terrain's
+# writes the report's score heatmaps (peak marked), 3D surfaces, fall rates, the score's
+# tracking component, torque shares and the overlap across terrains to docs/study/ROBOT/
+# (replacing the pictures there), and each terrain's
 # grid as JSON to tests/data/study-ROBOT-TERRAIN.json once every point of it is scored.
 #
 #   scripts/study-docs.sh anymal
@@ -19,6 +20,8 @@ if [ ! -e "$SNAP/gaitsweep.sqlite" ] || [ ! -e "$SNAP/sweep.id" ]; then
   exit 1
 fi
 source scripts/setup.sh
+# The snapshot's copy is the database: one named in the environment must not take its place.
+unset GAITSWEEP_DATABASE
 export GAITSWEEP_ROBOTS="${GAITSWEEP_ROBOTS:-$PWD/robots}"
 cargo build --release -p gaitsweep-coordinator --bins
 BIN="${CARGO_TARGET_DIR:-$PWD/target}/release"
@@ -31,6 +34,7 @@ cp "$SNAP/gaitsweep.sqlite" "$TMP/data/"
 "$BIN/coordinator" report --data-dir "$TMP/data" "$SWEEP" --out "$TMP/report" --no-gif
 OUT="docs/study/$ROBOT"
 mkdir -p "$OUT"
+rm -f "$OUT"/*.png
 for f in "$TMP"/report/{score,surface,fall_rate,track,torque_share}_*.png "$TMP/report/overlap.png"; do
   [ -e "$f" ] && cp "$f" "$OUT/"
 done

@@ -528,8 +528,9 @@ impl ResolvedSpec {
     /// The epoch at which a cell whose mean reward was exactly 0 at every epoch so far stops
     /// and is scored: `stop_unrewarded` of the epochs, rounded up, at least 1 (0: never).
     pub fn stop_unrewarded_after(&self) -> u32 {
+        // The epsilon keeps a product such as 0.07 x 100 = 7.000000000000001 at 7.
         self.stop_unrewarded.map_or(0, |f| {
-            ((f * f64::from(self.epochs)).ceil() as u32).clamp(1, self.epochs.max(1))
+            ((f * f64::from(self.epochs) - 1e-9).ceil() as u32).clamp(1, self.epochs.max(1))
         })
     }
 

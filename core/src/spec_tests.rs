@@ -645,6 +645,13 @@ fn stop_unrewarded_resolves_to_an_epoch_crosses_the_wire_and_refuses_nonsense() 
     .resolve_with(ok)
     .unwrap();
     assert_eq!(tiny.stop_unrewarded_after(), 1);
+    // Rounded up from the exact fraction, not from the float product's last bit.
+    let r7 = ResolvedSpec {
+        epochs: 100,
+        stop_unrewarded: Some(0.07),
+        ..tiny.clone()
+    };
+    assert_eq!(r7.stop_unrewarded_after(), 7);
 
     // Off by default, and a spec stored without it reads (and is stored) as before.
     let off = SweepSpec::from_toml(base)

@@ -217,8 +217,7 @@ fn points_never_rewarded_are_named_and_marked() {
         "rough only"
     );
     assert!(html.contains("Points never rewarded: <b>1</b> (w1, w2) = (7, -2)."));
-    // A spec that stops such cells says where, in the budget the report, `show` and the
-    // live page print.
+    // A spec that stops such cells says where, in the report's budget line.
     let mut spec = spec();
     assert!(!budget_text(&spec).contains("never rewarded"));
     spec.epochs = 1200;

@@ -1,4 +1,4 @@
-//! A sweep's budget and evaluation in words, for the report, `show` and the live page.
+//! A sweep's budget and evaluation in words, for the report.
 
 /// The budget a sweep was given, in words: robots and epochs per cell, how the search spends
 /// them, where a cell never rewarded stops, replicates, the evaluation rollout and any PPO overrides.

@@ -1218,7 +1218,6 @@ tokio::task_local! {
     static BACKEND: Backend;
 }
 
-/// Runs every listed test on SQLite and on PostgreSQL (`sqlite::NAME`, `postgres::NAME`).
 async fn never_rewarded_cells_are_the_done_ones_with_zero_reward() {
     let (_d, store, w) = setup().await;
     let sweep = store
@@ -1253,6 +1252,7 @@ async fn never_rewarded_cells_are_the_done_ones_with_zero_reward() {
     );
 }
 
+/// Runs every listed test on SQLite and on PostgreSQL (`sqlite::NAME`, `postgres::NAME`).
 macro_rules! conformance {
     ($($name:ident),* $(,)?) => {
         mod sqlite {
