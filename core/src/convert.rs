@@ -573,6 +573,28 @@ mod eval_tests {
         assert_eq!(GaitScore::from(&wire), g);
     }
 
+    /// Cell 1 of sweep 1 on `terrain`, queued, training to epoch 10.
+    fn queued_cell(terrain: &str) -> CellRecord {
+        CellRecord {
+            id: CellId(1),
+            sweep_id: SweepId(1),
+            terrain_index: 0,
+            terrain: terrain.into(),
+            place: Place::point(0, 0),
+            w1: 1.0,
+            w2: -6.0,
+            seed: 1,
+            replicate: 0,
+            state: CellState::Queued,
+            attempts: 0,
+            epochs_done: 0,
+            target_epochs: 10,
+            score: None,
+            rung_score: None,
+            last_error: None,
+        }
+    }
+
     #[test]
     fn a_task_carries_its_cells_evaluation_and_back() {
         let grid = PresetGrid {
@@ -592,24 +614,7 @@ mod eval_tests {
             ("flat", TerrainKind::Flat, vec![0]),
             ("rough", TerrainKind::Rough, vec![2, 4]),
         ] {
-            let cell = CellRecord {
-                id: CellId(1),
-                sweep_id: SweepId(1),
-                terrain_index: 0,
-                terrain: terrain.into(),
-                place: Place::point(0, 0),
-                w1: 1.0,
-                w2: -6.0,
-                seed: 1,
-                replicate: 0,
-                state: CellState::Queued,
-                attempts: 0,
-                epochs_done: 0,
-                target_epochs: 10,
-                score: None,
-                rung_score: None,
-                last_error: None,
-            };
+            let cell = queued_cell(terrain);
             let task = cell_task(&cell, &spec);
             assert_eq!(task.stop_unrewarded_after, 0, "off unless the spec asks");
             let e = task_eval(&task, kind).unwrap();
@@ -628,24 +633,7 @@ mod eval_tests {
             stop_unrewarded: Some(0.25),
             ..spec.clone()
         };
-        let cell = CellRecord {
-            id: CellId(1),
-            sweep_id: SweepId(1),
-            terrain_index: 0,
-            terrain: "rough".into(),
-            place: Place::point(0, 0),
-            w1: 1.0,
-            w2: -6.0,
-            seed: 1,
-            replicate: 0,
-            state: CellState::Queued,
-            attempts: 0,
-            epochs_done: 0,
-            target_epochs: 10,
-            score: None,
-            rung_score: None,
-            last_error: None,
-        };
+        let cell = queued_cell("rough");
         assert_eq!(cell_task(&cell, &stopping).stop_unrewarded_after, 3);
     }
 }
