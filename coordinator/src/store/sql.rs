@@ -14,8 +14,8 @@ use super::rows::{CELL_COLUMNS, CELL_ORDER, SWEEP_COLUMNS};
 use super::score_sql::ScoreTable;
 use super::search::{self, rung_result};
 use super::tx::{
-    cell_from_row, cell_tx, checkpoint_of, end_winning_attempt, lease_cell, refuse_closed,
-    require_uploaded, sweep_from_row, sweep_tx, LeaseCell,
+    cell_from_row, cell_tx, checkpoint_of, drop_epochs_after, end_winning_attempt, lease_cell,
+    refuse_closed, require_uploaded, sweep_from_row, sweep_tx, LeaseCell,
 };
 use super::{
     AttemptEnd, AttemptOutcome, LeaseGrant, ResultOutcome, RunningLease, Store, WorkerInfo,
@@ -545,6 +545,7 @@ impl Store for SqlStore {
             .bind(now_ms);
         t.bind(q, score).execute(&mut *tx).await?;
         super::levels::write(&mut tx, cell_id, lease, epochs, &score.levels).await?;
+        drop_epochs_after(&mut tx, cell_id, epochs).await?;
         end_winning_attempt(
             &mut tx,
             lease,
@@ -553,13 +554,11 @@ impl Store for SqlStore {
             "cell finished by another attempt",
         )
         .await?;
-        sqlx::query(
-            "UPDATE cells SET state = 'done', epochs_done = CASE WHEN epochs_done > $1 THEN epochs_done ELSE $1 END WHERE id = $2",
-        )
-        .bind(epochs as i64)
-        .bind(cell_id.0)
-        .execute(&mut *tx)
-        .await?;
+        sqlx::query("UPDATE cells SET state = 'done', epochs_done = $1 WHERE id = $2")
+            .bind(epochs as i64)
+            .bind(cell_id.0)
+            .execute(&mut *tx)
+            .await?;
         let cell = cell_tx(&mut tx, cell_id).await?;
         let promotions = promote_point(&mut tx, &cell, now_ms).await?;
         search::apply_search(&mut tx, sweep, now_ms).await?;

@@ -1252,6 +1252,92 @@ async fn never_rewarded_cells_are_the_done_ones_with_zero_reward() {
     );
 }
 
+/// A run resumed from a checkpoint does not replay its epochs bit for bit: an attempt killed
+/// after its first reward can be followed by one that stays unrewarded and stops early. The
+/// cell's rows are then the run that finished, not the killed attempt's later epochs.
+async fn a_cell_stopped_early_keeps_no_rows_of_a_killed_attempts_later_epochs() {
+    let (_d, store, w) = setup().await;
+    let mut s = spec(1, 1, vec![TerrainKind::Flat]);
+    s.eval.every = 1;
+    store.create_sweep(&s, 0).await.unwrap();
+    let epoch = |reward: f64, score: f64| -> BTreeMap<String, f64> {
+        [
+            ("mean_step_reward", reward),
+            ("eval/score", score),
+            ("eval/fall_rate", 0.5),
+        ]
+        .into_iter()
+        .map(|(n, v)| (n.to_string(), v))
+        .collect()
+    };
+    let g = store.lease_next(&w, 0, 1).await.unwrap().unwrap();
+    store
+        .record_progress(
+            g.lease,
+            &[
+                (1, epoch(0.0, 0.1)),
+                (2, epoch(0.0, 0.1)),
+                (3, epoch(0.2, 0.4)),
+            ],
+        )
+        .await
+        .unwrap();
+    store
+        .end_attempt(g.lease, AttemptEnd::Failed, "killed", 3, 2)
+        .await
+        .unwrap();
+    let g2 = store.lease_next(&w, 0, 3).await.unwrap().unwrap();
+    assert_eq!(g2.cell.id, g.cell.id);
+    store
+        .record_progress(g2.lease, &[(1, epoch(0.0, 0.1)), (2, epoch(0.0, 0.2))])
+        .await
+        .unwrap();
+    let count = |sql: &'static str| {
+        let store = &store;
+        async move {
+            let n: i64 = sqlx::query_scalar(sql)
+                .bind(g.cell.id.0)
+                .fetch_one(store.reader())
+                .await
+                .unwrap();
+            n
+        }
+    };
+    const METRICS: &str = "SELECT COUNT(*) FROM epoch_metrics WHERE cell_id = $1 AND epoch > 2";
+    const EVALS: &str = "SELECT COUNT(*) FROM evaluations WHERE cell_id = $1 AND epoch > 2";
+    assert!(
+        count(METRICS).await > 0,
+        "the killed attempt's epoch 3 is there while the cell runs"
+    );
+    assert_eq!(count(EVALS).await, 1);
+    // Stopped as never rewarded at epoch 2 of 3.
+    let out = store
+        .report_result(g2.lease, &score(0.5), 2, None, 4)
+        .await
+        .unwrap();
+    assert_eq!(
+        out.cell.epochs_done, 2,
+        "a done cell has trained the epochs it was scored at"
+    );
+    assert_eq!(
+        count(METRICS).await,
+        0,
+        "no metric past the epoch the result was trained to"
+    );
+    assert_eq!(count(EVALS).await, 0, "no evaluation past it either");
+    let kept: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM evaluations WHERE cell_id = $1")
+        .bind(g.cell.id.0)
+        .fetch_one(store.reader())
+        .await
+        .unwrap();
+    assert_eq!(kept, 2, "the finished run's own evaluations stay");
+    assert_eq!(
+        store.never_rewarded(out.cell.sweep_id).await.unwrap(),
+        vec![g.cell.id],
+        "the run that finished was never rewarded"
+    );
+}
+
 /// Runs every listed test on SQLite and on PostgreSQL (`sqlite::NAME`, `postgres::NAME`).
 macro_rules! conformance {
     ($($name:ident),* $(,)?) => {
@@ -1293,4 +1379,5 @@ conformance!(
     the_readme_queries_run,
     old_candidates_move_to_their_own_columns,
     never_rewarded_cells_are_the_done_ones_with_zero_reward,
+    a_cell_stopped_early_keeps_no_rows_of_a_killed_attempts_later_epochs,
 );

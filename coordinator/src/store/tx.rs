@@ -156,3 +156,22 @@ pub(super) async fn end_winning_attempt(
     .await?;
     Ok(())
 }
+
+/// Removes a cell's metrics and periodic evaluations (with their levels) past `epochs`,
+/// the epoch its result was trained to. Only an earlier attempt, killed after it had
+/// trained further than the run that finished (one stopped early as never rewarded), leaves
+/// such rows; kept, they would describe a run that was cut off, not the cell's policy.
+pub(super) async fn drop_epochs_after(tx: &mut Tx, cell: CellId, epochs: u32) -> Result<()> {
+    for sql in [
+        "DELETE FROM epoch_metrics WHERE cell_id = $1 AND epoch > $2",
+        "DELETE FROM evaluations WHERE cell_id = $1 AND epoch > $2 AND kind = 'periodic'",
+        "DELETE FROM level_scores WHERE cell_id = $1 AND epoch > $2",
+    ] {
+        sqlx::query(sql)
+            .bind(cell.0)
+            .bind(epochs as i64)
+            .execute(&mut **tx)
+            .await?;
+    }
+    Ok(())
+}
