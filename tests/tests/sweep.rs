@@ -634,6 +634,19 @@ async fn a_cell_never_rewarded_stops_early_and_the_sweep_finishes() {
         })
         .collect();
     assert_eq!(marks, [(-20.0, false), (-2.0, true)]);
+    // The sweep list's progress counts the stopped cell at the epochs it trained: full.
+    let (status, body) = http_get(&http, "/api/sweeps", None);
+    assert!(status.contains("200"), "{status}");
+    let list: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    let listed = &list["sweeps"][0];
+    assert_eq!(
+        (
+            listed["epochs_done"].as_i64(),
+            listed["epochs_total"].as_i64()
+        ),
+        (Some(10), Some(10)),
+        "8 epochs and 2 of 8: {listed}"
+    );
     // So does `coordinator show` (ListCells), with its legend.
     let (ok, text) = show(&coord, sweep.sweep_id);
     assert!(ok, "{text}");

@@ -57,22 +57,32 @@ struct SweepSummary {
 
 pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
     let records = live.coord.store.list_sweeps().await?;
-    let done: BTreeMap<i64, i64> = sqlx::query_as(
-        "SELECT sweep_id, CAST(SUM(epochs_done) AS BIGINT) FROM cells GROUP BY sweep_id",
+    // A closed cell trains no more: the epochs it will never train (one stopped early as
+    // never rewarded or by successive halving, one failed for good) leave the total, so a
+    // finished sweep reads full. Per sweep: epochs done, closed cells, their epochs done.
+    let done: BTreeMap<i64, (i64, i64, i64)> = sqlx::query_as(
+        "SELECT sweep_id, CAST(SUM(epochs_done) AS BIGINT), \
+         CAST(SUM(CASE WHEN state IN ('done', 'failed', 'cancelled', 'stopped') THEN 1 ELSE 0 END) AS BIGINT), \
+         CAST(SUM(CASE WHEN state IN ('done', 'failed', 'cancelled', 'stopped') THEN epochs_done ELSE 0 END) AS BIGINT) \
+         FROM cells GROUP BY sweep_id",
     )
     .fetch_all(&live.db)
     .await?
     .into_iter()
+    .map(|(id, done, closed, closed_done): (i64, i64, i64, i64)| (id, (done, closed, closed_done)))
     .collect();
     let now = now_ms();
     let out: Vec<SweepSummary> = records
         .iter()
         .map(|s| {
-            let epochs_done = done.get(&s.id.0).copied().unwrap_or(0);
+            let (epochs_done, closed, closed_done) =
+                done.get(&s.id.0).copied().unwrap_or((0, 0, 0));
+            let epochs = i64::from(s.spec.epochs);
+            let untrained = (closed * epochs - closed_done).max(0);
             // An evolutionary search's cells appear generation by generation: its total is
             // the budget.
             let epochs_total = s.spec.budget_epochs().map_or_else(
-                || i64::from(s.cells_total) * i64::from(s.spec.epochs),
+                || i64::from(s.cells_total) * epochs - untrained,
                 |b| b as i64,
             );
             let running = s.state == gaitsweep_core::SweepState::Running;
