@@ -55,36 +55,60 @@ struct SweepSummary {
     eta_seconds: Option<f64>,
 }
 
+/// A sweep's epochs by its cells' states, for its progress.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct EpochCounts {
+    /// Epochs trained by every cell.
+    done: i64,
+    /// Cells that train no more (done, failed, cancelled, stopped).
+    closed: i64,
+    /// Epochs those cells trained.
+    closed_done: i64,
+    /// What they fell short of the epoch they were training to (`target_epochs`).
+    short_of_target: i64,
+}
+
+impl EpochCounts {
+    /// The epochs the sweep will have trained when it ends. A closed cell counts at the
+    /// epochs it trained (one stopped early as never rewarded, one failed for good, one a
+    /// rung stopped), so a finished sweep reads full. An evolutionary search's cells appear
+    /// generation by generation: its total is its budget, less what closed cells fell short
+    /// of their stage (the budget already leaves out what its halving stops).
+    fn total(&self, epochs: u32, cells: u32, budget: Option<u64>) -> i64 {
+        match budget {
+            Some(b) => (b as i64 - self.short_of_target).max(self.done),
+            None => {
+                let untrained = (self.closed * i64::from(epochs) - self.closed_done).max(0);
+                i64::from(cells) * i64::from(epochs) - untrained
+            }
+        }
+    }
+}
+
 pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
     let records = live.coord.store.list_sweeps().await?;
-    // A closed cell trains no more: the epochs it will never train (one stopped early as
-    // never rewarded or by successive halving, one failed for good) leave the total, so a
-    // finished sweep reads full. Per sweep: epochs done, closed cells, their epochs done.
-    let done: BTreeMap<i64, (i64, i64, i64)> = sqlx::query_as(
+    let counts: BTreeMap<i64, EpochCounts> = sqlx::query_as(
         "SELECT sweep_id, CAST(SUM(epochs_done) AS BIGINT), \
          CAST(SUM(CASE WHEN state IN ('done', 'failed', 'cancelled', 'stopped') THEN 1 ELSE 0 END) AS BIGINT), \
-         CAST(SUM(CASE WHEN state IN ('done', 'failed', 'cancelled', 'stopped') THEN epochs_done ELSE 0 END) AS BIGINT) \
+         CAST(SUM(CASE WHEN state IN ('done', 'failed', 'cancelled', 'stopped') THEN epochs_done ELSE 0 END) AS BIGINT), \
+         CAST(SUM(CASE WHEN state IN ('done', 'failed', 'cancelled', 'stopped') AND target_epochs > epochs_done \
+             THEN target_epochs - epochs_done ELSE 0 END) AS BIGINT) \
          FROM cells GROUP BY sweep_id",
     )
     .fetch_all(&live.db)
     .await?
     .into_iter()
-    .map(|(id, done, closed, closed_done): (i64, i64, i64, i64)| (id, (done, closed, closed_done)))
+    .map(|(id, done, closed, closed_done, short_of_target): (i64, i64, i64, i64, i64)| {
+        (id, EpochCounts { done, closed, closed_done, short_of_target })
+    })
     .collect();
     let now = now_ms();
     let out: Vec<SweepSummary> = records
         .iter()
         .map(|s| {
-            let (epochs_done, closed, closed_done) =
-                done.get(&s.id.0).copied().unwrap_or((0, 0, 0));
-            let epochs = i64::from(s.spec.epochs);
-            let untrained = (closed * epochs - closed_done).max(0);
-            // An evolutionary search's cells appear generation by generation: its total is
-            // the budget.
-            let epochs_total = s.spec.budget_epochs().map_or_else(
-                || i64::from(s.cells_total) * epochs - untrained,
-                |b| b as i64,
-            );
+            let c = counts.get(&s.id.0).copied().unwrap_or_default();
+            let epochs_done = c.done;
+            let epochs_total = c.total(s.spec.epochs, s.cells_total, s.spec.budget_epochs());
             let running = s.state == gaitsweep_core::SweepState::Running;
             let secs = (now - s.created_unix_ms).max(1) as f64 / 1000.0;
             let rate = (running && epochs_done > 0).then(|| epochs_done as f64 / secs);
@@ -473,4 +497,45 @@ pub(crate) async fn report_file(
         _ => "application/octet-stream",
     };
     Ok(([(header::CONTENT_TYPE, kind)], Body::from(bytes)).into_response())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::EpochCounts;
+
+    #[test]
+    fn a_grid_counts_closed_cells_at_the_epochs_they_trained() {
+        // 4 cells of 100 epochs: one done at 100, one stopped unrewarded at 10, one failed
+        // at 30, one running at 50.
+        let c = EpochCounts {
+            done: 190,
+            closed: 3,
+            closed_done: 140,
+            short_of_target: 160,
+        };
+        assert_eq!(c.total(100, 4, None), 400 - 160);
+        let fresh = EpochCounts::default();
+        assert_eq!(fresh.total(100, 4, None), 400);
+        // Finished: every cell closed, the total is what they trained.
+        let finished = EpochCounts {
+            done: 210,
+            closed: 4,
+            closed_done: 210,
+            short_of_target: 190,
+        };
+        assert_eq!(finished.total(100, 4, None), finished.done);
+    }
+
+    #[test]
+    fn a_budget_loses_what_closed_cells_fell_short_of() {
+        let c = EpochCounts {
+            done: 1_000,
+            closed: 5,
+            closed_done: 900,
+            short_of_target: 300,
+        };
+        assert_eq!(c.total(100, 12, Some(3_000)), 2_700);
+        // Never below what was trained.
+        assert_eq!(c.total(100, 12, Some(1_100)), 1_000);
+    }
 }

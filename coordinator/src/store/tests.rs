@@ -1261,10 +1261,13 @@ async fn a_cell_stopped_early_keeps_no_rows_of_a_killed_attempts_later_epochs() 
     s.eval.every = 1;
     store.create_sweep(&s, 0).await.unwrap();
     let epoch = |reward: f64, score: f64| -> BTreeMap<String, f64> {
+        // Each evaluation with its level 3 (`level_scores`).
         [
             ("mean_step_reward", reward),
             ("eval/score", score),
             ("eval/fall_rate", 0.5),
+            ("eval/level/3/score", score),
+            ("eval/level/3/fall_rate", 0.5),
         ]
         .into_iter()
         .map(|(n, v)| (n.to_string(), v))
@@ -1309,7 +1312,8 @@ async fn a_cell_stopped_early_keeps_no_rows_of_a_killed_attempts_later_epochs() 
         count(METRICS).await > 0,
         "the killed attempt's epoch 3 is there while the cell runs"
     );
-    assert_eq!(count(EVALS).await, 1);
+    const LEVELS: &str = "SELECT COUNT(*) FROM level_scores WHERE cell_id = $1 AND epoch > 2";
+    assert_eq!((count(EVALS).await, count(LEVELS).await), (1, 1));
     // Stopped as never rewarded at epoch 2 of 3.
     let out = store
         .report_result(g2.lease, &score(0.5), 2, None, 4)
@@ -1325,6 +1329,7 @@ async fn a_cell_stopped_early_keeps_no_rows_of_a_killed_attempts_later_epochs() 
         "no metric past the epoch the result was trained to"
     );
     assert_eq!(count(EVALS).await, 0, "no evaluation past it either");
+    assert_eq!(count(LEVELS).await, 0, "nor its levels");
     let kept: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM evaluations WHERE cell_id = $1")
         .bind(g.cell.id.0)
         .fetch_one(store.reader())
