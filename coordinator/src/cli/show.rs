@@ -140,14 +140,24 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                 scores.iter().filter(|s| s.walks_at_every_level()).count()
             );
         }
-        let mut unrewarded = false;
+        let never_rewarded = |here: &[&pb::Cell]| {
+            here.iter().any(|c| c.score.is_some())
+                && here
+                    .iter()
+                    .filter(|c| c.score.is_some())
+                    .all(|c| c.never_rewarded)
+        };
+        // A grid with a never-rewarded point gives every point a second mark column, so
+        // that `*!` does not push its score one character out of line with the others.
+        let unrewarded = (0..s.w1_values.len())
+            .any(|i| (0..s.w2_values.len()).any(|j| never_rewarded(&point(i, j))));
         let _ = write!(o, "{:>10}", "w1 \\ w2");
         for w2 in &s.w2_values {
             let _ = write!(o, " {:>width$.3}", w2);
         }
         o.push('\n');
         for (i, w1) in s.w1_values.iter().enumerate() {
-            let _ = write!(o, "{:>10.3}", w1);
+            let mut row = format!("{:>10.3}", w1);
             for j in 0..s.w2_values.len() {
                 let here = point(i, j);
                 let mark = if best_point == Some((ti as u32, Place::point(i as u32, j as u32))) {
@@ -158,20 +168,20 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                     " "
                 };
                 // Beside the best marks, not instead: a best point never rewarded says most.
-                let never = here.iter().any(|c| c.score.is_some())
-                    && here
-                        .iter()
-                        .filter(|c| c.score.is_some())
-                        .all(|c| c.never_rewarded);
-                unrewarded |= never;
-                let mark = match (never, mark) {
-                    (true, " ") => "!".to_string(),
-                    (true, m) => format!("{m}!"),
-                    (false, m) => m.to_string(),
+                let mark = match (unrewarded, never_rewarded(&here)) {
+                    (false, _) => mark.to_string(),
+                    (true, true) => format!("{mark}!"),
+                    (true, false) => format!("{mark} "),
                 };
-                let text = point_text(&here, replicates, &mark);
-                let _ = write!(o, " {:>width$}", text);
+                let mut text = point_text(&here, replicates, &mark);
+                // A state's text leaves one mark column blank; the grid has two.
+                if unrewarded && point_summary(&here).is_none() {
+                    text.push(' ');
+                }
+                let _ = write!(row, " {:>width$}", text);
             }
+            // The mark columns of the last point would leave blanks at the line's end.
+            o.push_str(row.trim_end());
             o.push('\n');
         }
         if unrewarded {
@@ -400,7 +410,7 @@ mod tests {
         ];
         let text = render_show(&sweep, &cells);
         // Point w1 = 2: mean 0.5, sd 0.566, half-width 12.706 * 0.566 / sqrt(2) = 5.082.
-        assert!(text.contains("0.500±5.082/ 25% "), "{text}");
+        assert!(text.contains("0.500±5.082/ 25%\n"), "{text}");
         assert!(
             text.contains("cells that walk (falls <= 10%, |v_cmd - v| <= 0.25 m/s, mean over levels): 0 of 4 scored"),
             "{text}"
@@ -437,7 +447,7 @@ mod tests {
             cell(2, 1, 0, 0.6),
         ];
         let text = render_show(&sweep, &marked);
-        assert!(text.contains("0.2000/ 25%!"), "{text}");
+        assert!(text.contains("0.2000/ 25% !"), "{text}");
         assert!(text.contains("0.6000/ 25%*\n"), "{text}");
         // The best point never rewarded keeps both marks.
         let best = [
@@ -449,6 +459,13 @@ mod tests {
         ];
         let text = render_show(&sweep, &best);
         assert!(text.contains("0.6000/ 25%*!"), "{text}");
+        // Both marks take no more room than one: the scores stay in line.
+        let column = |row: &str| {
+            let line = text.lines().find(|l| l.starts_with(row)).unwrap();
+            line.find('%').unwrap()
+        };
+        assert_eq!(column("     2.000"), column("     8.000"), "{text}");
+        assert!(text.lines().all(|l| l == l.trim_end()), "{text}");
         assert!(
             text.contains("! never rewarded: mean reward per step 0 at every epoch"),
             "{text}"
@@ -483,7 +500,7 @@ mod tests {
         let text = render_show(&sweep, &cells);
         assert!(text.contains("finalists: the top 1 points"), "{text}");
         // One seed of the point w1 = 2 is scored: no interval is claimed.
-        assert!(text.contains("0.900 n=1/ 25% "), "{text}");
+        assert!(text.contains("0.900 n=1/ 25%\n"), "{text}");
         assert!(!text.contains("±0.000"), "{text}");
         assert!(text.contains("0.550±"), "{text}");
         assert!(text.contains("/ 25%+"), "{text}");
