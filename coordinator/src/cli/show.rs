@@ -140,17 +140,23 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                 scores.iter().filter(|s| s.walks_at_every_level()).count()
             );
         }
-        let never_rewarded = |here: &[&pb::Cell]| {
-            here.iter().any(|c| c.score.is_some())
-                && here
-                    .iter()
-                    .filter(|c| c.score.is_some())
-                    .all(|c| c.never_rewarded)
-        };
+        let never: Vec<Vec<bool>> = (0..s.w1_values.len())
+            .map(|i| {
+                (0..s.w2_values.len())
+                    .map(|j| {
+                        let here = point(i, j);
+                        here.iter().any(|c| c.score.is_some())
+                            && here
+                                .iter()
+                                .filter(|c| c.score.is_some())
+                                .all(|c| c.never_rewarded)
+                    })
+                    .collect()
+            })
+            .collect();
         // A grid with a never-rewarded point gives every point a second mark column, so
         // that `*!` does not push its score one character out of line with the others.
-        let unrewarded = (0..s.w1_values.len())
-            .any(|i| (0..s.w2_values.len()).any(|j| never_rewarded(&point(i, j))));
+        let unrewarded = never.iter().flatten().any(|&n| n);
         let _ = write!(o, "{:>10}", "w1 \\ w2");
         for w2 in &s.w2_values {
             let _ = write!(o, " {:>width$.3}", w2);
@@ -168,16 +174,12 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                     " "
                 };
                 // Beside the best marks, not instead: a best point never rewarded says most.
-                let mark = match (unrewarded, never_rewarded(&here)) {
+                let mark = match (unrewarded, never[i][j]) {
                     (false, _) => mark.to_string(),
                     (true, true) => format!("{mark}!"),
                     (true, false) => format!("{mark} "),
                 };
-                let mut text = point_text(&here, replicates, &mark);
-                // A state's text leaves one mark column blank; the grid has two.
-                if unrewarded && point_summary(&here).is_none() {
-                    text.push(' ');
-                }
+                let text = point_text(&here, replicates, &mark);
                 let _ = write!(row, " {:>width$}", text);
             }
             // The mark columns of the last point would leave blanks at the line's end.
@@ -296,8 +298,10 @@ pub(crate) fn levels_line(s: &pb::GaitScore) -> String {
 }
 
 /// One point's cell text: score (mean ± 95% CI with replicates) / fall rate and `mark`,
-/// or the state of its first cell while none is scored.
+/// or the state of its first cell while none is scored (with blanks where `mark` would be,
+/// so that states and scores stay in line).
 pub(crate) fn point_text(here: &[&pb::Cell], replicates: u32, mark: &str) -> String {
+    let blank = " ".repeat(mark.chars().count());
     match (point_summary(here), here.first()) {
         (Some((st, fall)), _) if replicates > 1 && st.n > 1 => {
             format!("{:.3}±{:.3}/{:>3.0}%{mark}", st.mean, st.ci95, 100.0 * fall)
@@ -309,15 +313,15 @@ pub(crate) fn point_text(here: &[&pb::Cell], replicates: u32, mark: &str) -> Str
         (Some((st, fall)), _) => format!("{:.4}/{:>3.0}%{mark}", st.mean, 100.0 * fall),
         (None, Some(c)) => match here.iter().find_map(|c| c.rung_score) {
             Some(r) if c.state == pb::CellState::Stopped as i32 => {
-                format!("stopped@{}: {r:.3} ", c.epochs_done)
+                format!("stopped@{}: {r:.3}{blank}", c.epochs_done)
             }
             // A long cell's epoch says how far it is (and a queued one resumes from there).
             _ if c.epochs_done > 0 && c.state != pb::CellState::Done as i32 => {
-                format!("{}@{} ", cell_state(c.state), c.epochs_done)
+                format!("{}@{}{blank}", cell_state(c.state), c.epochs_done)
             }
-            _ => format!("{} ", cell_state(c.state)),
+            _ => format!("{}{blank}", cell_state(c.state)),
         },
-        (None, None) => "- ".into(),
+        (None, None) => format!("-{blank}"),
     }
 }
 
