@@ -164,7 +164,7 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         o.push('\n');
         for (i, w1) in s.w1_values.iter().enumerate() {
             let mut row = format!("{:>10.3}", w1);
-            for j in 0..s.w2_values.len() {
+            for (j, &never_here) in never[i].iter().enumerate() {
                 let here = point(i, j);
                 let mark = if best_point == Some((ti as u32, Place::point(i as u32, j as u32))) {
                     "*"
@@ -174,7 +174,7 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                     " "
                 };
                 // Beside the best marks, not instead: a best point never rewarded says most.
-                let mark = match (unrewarded, never[i][j]) {
+                let mark = match (unrewarded, never_here) {
                     (false, _) => mark.to_string(),
                     (true, true) => format!("{mark}!"),
                     (true, false) => format!("{mark} "),

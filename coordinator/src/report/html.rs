@@ -73,6 +73,13 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         d.w2_values.iter().map(|v| fmt_w(*v)).collect::<Vec<_>>().join(", "),
         esc(&d.budget),
     );
+    if let Some(m) = super::machines::summary(&d.cells) {
+        let _ = writeln!(
+            o,
+            "<p>{} The same seed trains differently on two CPU models, so a result names the CPUs it was trained on.</p>",
+            esc(&m)
+        );
+    }
 
     o.push_str("<h2>Promoted policy</h2>\n");
     let promoted = d.promoted();
@@ -286,7 +293,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
 
     o.push_str("<h2>Cells</h2>\n<table>\n<tr><th>cell</th><th>terrain</th><th>w1</th><th>w2</th><th>replicate</th><th>state</th><th>epochs</th><th>attempts</th>\
                 <th>score</th><th>track</th><th>effort</th><th>tilt</th><th>progress</th><th>bounded progress</th><th>fall rate</th><th>|v_cmd \u{2212} v|</th>\
-                <th>overspeed (m/s)</th><th>mean |\u{3c4}|</th><th>cost of transport</th><th>by level: score / falls</th><th>error</th></tr>\n");
+                <th>overspeed (m/s)</th><th>mean |\u{3c4}|</th><th>cost of transport</th><th>by level: score / falls</th><th>trained on (CPU, epochs)</th><th>error</th></tr>\n");
     let best_id = promoted.map(|c| c.id);
     for c in &d.cells {
         let class = if Some(c.id) == best_id {
@@ -340,6 +347,11 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
             }
             None => o.push_str(&"<td></td>".repeat(12)),
         }
+        let _ = write!(
+            o,
+            "<td>{}</td>",
+            esc(&super::machines::spans_text(&c.trained_on))
+        );
         let note = [
             c.never_rewarded().then_some(NEVER_REWARDED),
             c.last_error.as_deref(),
@@ -347,7 +359,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         let note: Vec<&str> = note.into_iter().flatten().collect();
         let _ = writeln!(o, "<td>{}</td></tr>", esc(&note.join("; ")));
     }
-    o.push_str("</table>\n<p>Every value comes from the coordinator's database (tables cells, scores, level_scores, epoch_metrics, promotions). \
+    o.push_str("</table>\n<p>Every value comes from the coordinator's database (tables cells, scores, level_scores, epoch_metrics, promotions, attempts and workers). \
                 Overspeed is the mean of max(0, |v| \u{2212} |v_cmd|): how much faster than commanded the robots ran, which Eq. 4's progress term pays for.</p>\n</body></html>\n");
     o
 }

@@ -17,6 +17,7 @@
 //! function of a [`ReportData`], so it is tested on synthetic data.
 
 mod html;
+pub mod machines;
 mod plots;
 pub mod tensorboard;
 mod text;
@@ -83,6 +84,8 @@ pub struct ReportCell {
     pub curves: BTreeMap<String, Vec<(u32, f64)>>,
     /// Its deepest successive-halving rung evaluation (epoch, gait score), if any.
     pub rung: Option<(u32, f64)>,
+    /// The CPUs that trained its epochs, in epoch order ([`machines::cpu_spans`]).
+    pub trained_on: Vec<machines::CpuSpan>,
 }
 
 impl ReportCell {
@@ -386,7 +389,13 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> Result<ReportData> {
             checkpoint,
             curves: BTreeMap::new(),
             rung: None,
+            trained_on: Vec::new(),
         });
+    }
+    let mut attempts = queries::attempt_cpus(db, SweepId(sweep)).await?;
+    for c in &mut data.cells {
+        let a = attempts.remove(&c.id).unwrap_or_default();
+        c.trained_on = machines::cpu_spans(&a, c.epochs_done);
     }
     let mut levels = crate::store::levels::final_levels(db, gaitsweep_core::SweepId(sweep)).await?;
     for c in &mut data.cells {

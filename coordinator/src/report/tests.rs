@@ -3,6 +3,7 @@
 //! back and reported.
 
 use super::*;
+use crate::store::queries::AttemptCpu;
 use crate::store::{SqlStore, Store, WorkerInfo, DB_FILE};
 use gaitsweep_core::records::CheckpointRecord;
 use gaitsweep_core::{ResolvedSpec, WorkerId};
@@ -76,6 +77,20 @@ fn synthetic() -> ReportData {
                     checkpoint: Some(format!("checkpoints/{id}.safetensors")),
                     curves,
                     rung: None,
+                    // every fifth cell moved from one machine to another halfway
+                    trained_on: machines::cpu_spans(
+                        &[
+                            AttemptCpu {
+                                cpu: "amd".into(),
+                                resumed_from: 0,
+                            },
+                            AttemptCpu {
+                                cpu: if id % 5 == 0 { "intel" } else { "amd" }.into(),
+                                resumed_from: 10,
+                            },
+                        ],
+                        20,
+                    ),
                 });
                 id += 1;
             }
@@ -367,6 +382,18 @@ fn every_picture_is_a_whole_png_and_svg() {
         d.cells.len() + 1,
         "one table row per cell"
     );
+    let moved = d.cells.iter().filter(|c| c.id % 5 == 0).count();
+    assert!(moved > 1);
+    let said = format!(
+        "Trained on amd: {} cells; intel: {moved} cells. {moved} cells trained on more than one CPU",
+        d.cells.len()
+    );
+    assert!(html.contains(&said), "index.html lacks {said:?}");
+    assert!(html.contains("<td>amd</td>"), "a cell on one CPU names it");
+    assert!(
+        html.contains("<td>amd 0\u{2013}10 \u{b7} intel 10\u{2013}20</td>"),
+        "a cell that moved names each CPU's epochs"
+    );
 }
 
 #[test]
@@ -520,6 +547,15 @@ async fn a_sweep_stored_by_the_coordinator_is_reported() {
         .starts_with("checkpoints/"));
     let c = d.cells.iter().find(|c| c.score.is_some()).unwrap();
     assert_eq!(c.curves["mean_step_reward"].len(), 3);
+    assert_eq!(
+        c.trained_on,
+        vec![machines::CpuSpan {
+            cpu: "test cpu".into(),
+            from: 0,
+            to: 3
+        }],
+        "the CPU of the worker that trained it, from the attempts"
+    );
     assert!(
         !c.curves.contains_key("kl"),
         "only curve metrics are loaded"

@@ -182,3 +182,37 @@ pub(super) async fn search_view(tx: &mut super::sql::Tx, sweep: SweepId) -> Resu
         })
         .collect()
 }
+
+/// One attempt at a cell as the machines' record reads it: the CPU model its worker
+/// reported (empty for workers older than that field) and the epoch it resumed from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct AttemptCpu {
+    /// CPU model of the attempt's worker (`workers.cpu`).
+    pub cpu: String,
+    /// The epoch the attempt resumed from (0: it started fresh).
+    pub resumed_from: u32,
+}
+
+/// Every attempt at `sweep`'s cells with its worker's CPU, by cell, in the order the
+/// attempts started: which machines trained a cell ([`crate::report::cpu_spans`]).
+pub async fn attempt_cpus<'e>(
+    db: impl Executor<'e, Database = Any>,
+    sweep: SweepId,
+) -> Result<BTreeMap<i64, Vec<AttemptCpu>>> {
+    let rows: Vec<(i64, String, i64)> = sqlx::query_as(
+        "SELECT a.cell_id, w.cpu, a.resumed_from_epoch FROM attempts a \
+         JOIN workers w ON w.id = a.worker_id JOIN cells c ON c.id = a.cell_id \
+         WHERE c.sweep_id = $1 ORDER BY a.cell_id, a.started_unix_ms, a.id",
+    )
+    .bind(sweep.0)
+    .fetch_all(db)
+    .await?;
+    let mut by_cell: BTreeMap<i64, Vec<AttemptCpu>> = BTreeMap::new();
+    for (cell, cpu, from) in rows {
+        by_cell.entry(cell).or_default().push(AttemptCpu {
+            cpu,
+            resumed_from: from.max(0) as u32,
+        });
+    }
+    Ok(by_cell)
+}
