@@ -194,7 +194,7 @@ pub struct AttemptCpu {
 }
 
 /// Every attempt at `sweep`'s cells with its worker's CPU, by cell, in the order the
-/// attempts started: which machines trained a cell ([`crate::report::cpu_spans`]).
+/// attempts started: which machines trained a cell ([`crate::report::machines::cpu_spans`]).
 pub async fn attempt_cpus<'e>(
     db: impl Executor<'e, Database = Any>,
     sweep: SweepId,
