@@ -93,16 +93,18 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
         render_candidates(&mut o, &title, cells, replicates, best_point);
     }
     for (ti, terrain) in spec.terrains.iter().enumerate().filter(|_| !evolutionary) {
-        let point = |i: usize, j: usize| -> Vec<&pb::Cell> {
-            cells
-                .iter()
-                .filter(|c| {
-                    c.terrain_index as usize == ti
-                        && c.w1_index as usize == i
-                        && c.w2_index as usize == j
-                })
-                .collect()
-        };
+        // Each grid point's cells on this terrain, gathered once: every pass below reads them.
+        let mut grid: Vec<Vec<Vec<&pb::Cell>>> =
+            vec![vec![Vec::new(); s.w2_values.len()]; s.w1_values.len()];
+        for c in cells.iter().filter(|c| c.terrain_index as usize == ti) {
+            if let Some(here) = grid
+                .get_mut(c.w1_index as usize)
+                .and_then(|row| row.get_mut(c.w2_index as usize))
+            {
+                here.push(c);
+            }
+        }
+        let point = |i: usize, j: usize| -> &[&pb::Cell] { &grid[i][j] };
         let mut best_here: Option<((usize, usize), f64)> = None;
         // Once finalists exist, a terrain's best is among them, as its promotion is.
         let finalists_here = spec.finalists_seeds > 1
@@ -113,7 +115,7 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                 if finalists_here && point(i, j).len() < 2 {
                     continue;
                 }
-                if let Some((st, _)) = point_summary(&point(i, j)) {
+                if let Some((st, _)) = point_summary(point(i, j)) {
                     if best_here.is_none_or(|b| st.mean > b.1) {
                         best_here = Some(((i, j), st.mean));
                     }
@@ -140,11 +142,11 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                 scores.iter().filter(|s| s.walks_at_every_level()).count()
             );
         }
-        let never: Vec<Vec<bool>> = (0..s.w1_values.len())
-            .map(|i| {
-                (0..s.w2_values.len())
-                    .map(|j| {
-                        let here = point(i, j);
+        let never: Vec<Vec<bool>> = grid
+            .iter()
+            .map(|row| {
+                row.iter()
+                    .map(|here| {
                         here.iter().any(|c| c.score.is_some())
                             && here
                                 .iter()
@@ -179,7 +181,7 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
                     (true, true) => format!("{mark}!"),
                     (true, false) => format!("{mark} "),
                 };
-                let text = point_text(&here, replicates, &mark);
+                let text = point_text(here, replicates, &mark);
                 let _ = write!(row, " {:>width$}", text);
             }
             // The mark columns of the last point would leave blanks at the line's end.
