@@ -1,7 +1,10 @@
 -- The same-reward spread of a recording (BENCHMARKS "Session 43"): for each terrain and row w1,
 -- the first-seed cells whose torque penalty is under 1% of the tracking reward over training
--- (the report's NEGLIGIBLE_TORQUE_SHARE). Their weights give the same reward, so they are
--- runs that differ by their seed: their scores (by w2), mean and standard deviation.
+-- (the report's ReportCell::torque_share against NEGLIGIBLE_TORQUE_SHARE). Their weights give
+-- the same reward, so they are runs that differ by their seed: their scores (by w2), mean and
+-- standard deviation. It picks cells, not columns: the report's sentence names a column only
+-- when every cell of it is under 1% (negligible_torque_columns), so a row here may count a
+-- cell whose column the report leaves out.
 --
 --   sqlite3 -readonly -header -column studies/recordings/anymal/gaitsweep.sqlite < scripts/same-reward.sql
 WITH share AS (
