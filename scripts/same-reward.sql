@@ -4,7 +4,8 @@
 -- the same reward, so they are runs that differ by their seed: their scores (by w2), mean and
 -- standard deviation. It picks cells, not columns: the report's sentence names a column only
 -- when every cell of it is under 1% (negligible_torque_columns), so a row here may count a
--- cell whose column the report leaves out.
+-- cell whose column the report leaves out. The report's index.html prints the same rows
+-- (ReportData::same_reward_rows) with their pooled SD.
 --
 --   sqlite3 -readonly -header -column studies/recordings/anymal/gaitsweep.sqlite < scripts/same-reward.sql
 WITH share AS (

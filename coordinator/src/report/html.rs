@@ -190,6 +190,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
                 shape_paragraph(&mut o, d, t);
                 unrewarded_paragraph(&mut o, d, t);
                 torque_share_paragraph(&mut o, d, t);
+                same_reward_paragraph(&mut o, d, t);
             }
         }
         fig(
@@ -432,5 +433,40 @@ fn torque_share_paragraph(o: &mut String, d: &ReportData, t: usize) {
          more than by w2.</p>",
         100.0 * super::NEGLIGIBLE_TORQUE_SHARE,
         names.join(", "),
+    );
+}
+
+/// The spread of one run on terrain `t`, read from the rows' runs of nearly the same reward
+/// ([`ReportData::same_reward_rows`]).
+fn same_reward_paragraph(o: &mut String, d: &ReportData, t: usize) {
+    let rows = d.same_reward_rows(t);
+    let Some(pooled) = super::SameRewardRow::pooled_sd(&rows) else {
+        return;
+    };
+    let items: Vec<String> = rows
+        .iter()
+        .map(|r| {
+            let scores: Vec<String> = r.runs.iter().map(|&(_, v)| format!("{v:.3}")).collect();
+            let w2s: Vec<String> = r.runs.iter().map(|&(j, _)| fmt_w(d.w2_values[j])).collect();
+            format!(
+                "<li>w1 = {}: {} (w2 = {}), mean {:.3}, SD <b>{:.3}</b></li>",
+                fmt_w(d.w1_values[r.w1_index]),
+                scores.join(" / "),
+                w2s.join(", "),
+                r.mean,
+                r.sd,
+            )
+        })
+        .collect();
+    let _ = writeln!(
+        o,
+        "<p>Runs of nearly the same reward (first seed, torque penalty under {:.0}% of the tracking reward): \
+         within a row they differ by their seeds, not their weights, so their spread is that of a single run. \
+         Pooled SD <b>{:.3}</b>: two single runs are told apart at 95% only when their scores differ by more than \
+         {:.3} (2.77 SD).</p>\n<ul>{}</ul>",
+        100.0 * super::NEGLIGIBLE_TORQUE_SHARE,
+        pooled,
+        2.77 * pooled,
+        items.join(""),
     );
 }

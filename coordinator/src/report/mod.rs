@@ -11,7 +11,8 @@
 //! - `curves_<terrain>.{png,svg}`: learning curves (mean reward per step and mean return);
 //! - `gait.gif`: the promoted policy walking (`worker render`, run from the `worker` binary
 //!   next to this executable);
-//! - `index.html`: all of it with the table of cells.
+//! - `index.html`: all of it with the table of cells, and per terrain the spread of one run
+//!   read from the runs of nearly the same reward ([`ReportData::same_reward_rows`]).
 //!
 //! Loading ([`load`]) is the only part that touches the database; everything else is a
 //! function of a [`ReportData`], so it is tested on synthetic data.
@@ -128,6 +129,35 @@ impl ReportCell {
             .as_ref()
             .map(|s| s.score)
             .filter(|v| v.is_finite())
+    }
+}
+
+/// One row's first-seed runs of nearly the same reward ([`ReportData::same_reward_rows`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SameRewardRow {
+    /// The row (index into [`ReportData::w1_values`]).
+    pub w1_index: usize,
+    /// `(w2_index, score)` of each run, w2 ascending.
+    pub runs: Vec<(usize, f64)>,
+    /// Mean score of the runs.
+    pub mean: f64,
+    /// Sample standard deviation of the runs' scores (n - 1).
+    pub sd: f64,
+}
+
+impl SameRewardRow {
+    /// The rows' pooled standard deviation: each row's variance weighted by its degrees of
+    /// freedom, so that rows at different levels of score share one estimate of a run's
+    /// spread. `None` without rows.
+    pub fn pooled_sd(rows: &[SameRewardRow]) -> Option<f64> {
+        let dof: usize = rows.iter().map(|r| r.runs.len() - 1).sum();
+        (dof > 0).then(|| {
+            let ss: f64 = rows
+                .iter()
+                .map(|r| (r.runs.len() - 1) as f64 * r.sd * r.sd)
+                .sum();
+            (ss / dof as f64).sqrt()
+        })
     }
 }
 
@@ -291,6 +321,39 @@ impl ReportData {
         }
         cols.into_iter()
             .filter_map(|(j, small)| small.then_some(j))
+            .collect()
+    }
+
+    /// Per row of terrain `t`, the first-seed runs whose weights give nearly the same reward:
+    /// scored cells of replicate 0 whose [`ReportCell::torque_share`] is under
+    /// [`NEGLIGIBLE_TORQUE_SHARE`]. Across them only w2 differs, and it shapes their reward
+    /// by under 1%, so their scores are draws of one reward that differ by their seeds: the
+    /// spread of a single run, measured without spending replicates. Rows with fewer than two
+    /// such runs are left out. It picks cells, not columns
+    /// ([`ReportData::negligible_torque_columns`] needs every cell of a column under 1%).
+    pub fn same_reward_rows(&self, t: usize) -> Vec<SameRewardRow> {
+        let mut rows: BTreeMap<usize, Vec<(usize, f64)>> = BTreeMap::new();
+        for c in self.cells_of(t).filter(|c| c.replicate == 0) {
+            if let (Some((i, j)), Some(v), Some(share)) = (c.grid(), c.value(), c.torque_share()) {
+                if share < NEGLIGIBLE_TORQUE_SHARE {
+                    rows.entry(i).or_default().push((j, v));
+                }
+            }
+        }
+        rows.into_iter()
+            .filter(|(_, runs)| runs.len() > 1)
+            .map(|(w1_index, mut runs)| {
+                runs.sort_by_key(|r| r.0);
+                let n = runs.len() as f64;
+                let mean = runs.iter().map(|r| r.1).sum::<f64>() / n;
+                let var = runs.iter().map(|r| (r.1 - mean).powi(2)).sum::<f64>() / (n - 1.0);
+                SameRewardRow {
+                    w1_index,
+                    runs,
+                    mean,
+                    sd: var.sqrt(),
+                }
+            })
             .collect()
     }
 

@@ -311,6 +311,108 @@ fn the_torque_share_says_where_w2_shapes_the_reward() {
 }
 
 #[test]
+fn runs_of_nearly_the_same_reward_give_the_spread_of_one_run() {
+    let mut d = synthetic();
+    let track = 0.05;
+    for c in &mut d.cells {
+        // |torque penalty| / tracking = 10^(w2 + 3): under 1% at w2 = -10 and -7.33 only.
+        let torque = -track * 10f64.powf(c.w2 + 3.0);
+        c.curves.insert(
+            "reward/torques".into(),
+            (1..=20).map(|e| (e, torque)).collect(),
+        );
+        c.curves.insert(
+            "reward/tracking_lin_vel".into(),
+            (1..=20).map(|e| (e, track)).collect(),
+        );
+    }
+    // Flat, every row: 0.1 i - 0.1125 at w2 = -10 and 0.1 i - 0.0125 at -7.33.
+    let rows = d.same_reward_rows(0);
+    assert_eq!(
+        rows.iter().map(|r| r.w1_index).collect::<Vec<_>>(),
+        vec![0, 1, 2]
+    );
+    let sd = 0.1 / 2f64.sqrt();
+    for r in &rows {
+        assert_eq!(r.runs.iter().map(|x| x.0).collect::<Vec<_>>(), vec![0, 1]);
+        assert!((r.mean - (0.1 * r.w1_index as f64 - 0.0625)).abs() < 1e-9);
+        assert!((r.sd - sd).abs() < 1e-9, "{r:?}");
+    }
+    assert!((SameRewardRow::pooled_sd(&rows).unwrap() - sd).abs() < 1e-9);
+    // Rough: row 0's -10 has no finite score and row 2's -10 failed, so one run each is
+    // left: only row 1 has a spread.
+    let rows = d.same_reward_rows(1);
+    assert_eq!(rows.iter().map(|r| r.w1_index).collect::<Vec<_>>(), vec![1]);
+
+    // A replicate is not a first-seed run; a cell whose penalty weighs is not the same
+    // reward; a third run joins its row, and the pooled SD weighs rows by their runs.
+    let at = |d: &ReportData, t: usize, p: (usize, usize)| {
+        d.cells
+            .iter()
+            .position(|c| c.terrain_index == t && c.grid() == Some(p))
+            .unwrap()
+    };
+    let k = at(&d, 0, (0, 0));
+    d.cells[k].replicate = 1;
+    let k = at(&d, 0, (1, 1));
+    d.cells[k]
+        .curves
+        .insert("reward/torques".into(), vec![(1, -track)]);
+    let k = at(&d, 0, (2, 2));
+    d.cells[k]
+        .curves
+        .insert("reward/torques".into(), vec![(1, 0.0)]);
+    d.cells[k].score = Some(score(0.0875 + 0.3));
+    let rows = d.same_reward_rows(0);
+    assert_eq!(rows.len(), 1);
+    let r = &rows[0];
+    assert_eq!(r.w1_index, 2);
+    let v = [0.0875, 0.1875, 0.3875];
+    assert_eq!(
+        r.runs.iter().map(|x| x.0).collect::<Vec<_>>(),
+        vec![0, 1, 2]
+    );
+    for (run, want) in r.runs.iter().zip(v) {
+        assert!((run.1 - want).abs() < 1e-9);
+    }
+    let mean = v.iter().sum::<f64>() / 3.0;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / 2.0;
+    assert!((r.sd - var.sqrt()).abs() < 1e-9);
+    let two = [
+        r.clone(),
+        SameRewardRow {
+            w1_index: 0,
+            runs: vec![(0, 0.0), (1, 1.0)],
+            mean: 0.5,
+            sd: 0.5f64.sqrt(),
+        },
+    ];
+    let pooled = ((2.0 * var + 0.5) / 3.0).sqrt();
+    assert!((SameRewardRow::pooled_sd(&two).unwrap() - pooled).abs() < 1e-9);
+    assert_eq!(SameRewardRow::pooled_sd(&[]), None);
+
+    let dir = tempfile::tempdir().unwrap();
+    let gif = GifStatus::NotMade("--no-gif".into());
+    write_report(&d, dir.path(), &gif).unwrap();
+    let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
+    assert!(
+        html.contains(&format!("Pooled SD <b>{:.3}</b>", var.sqrt())),
+        "flat's one row"
+    );
+    let scores: Vec<String> = r.runs.iter().map(|x| format!("{:.3}", x.1)).collect();
+    assert!(html.contains(&format!(
+        "<li>w1 = 12: {} (w2 = -10, -7.33, -4.67), mean {mean:.3}, SD <b>{:.3}</b></li>",
+        scores.join(" / "),
+        var.sqrt()
+    )));
+    assert_eq!(
+        html.matches("Runs of nearly the same reward").count(),
+        2,
+        "flat and rough"
+    );
+}
+
+#[test]
 fn every_picture_is_a_whole_png_and_svg() {
     let d = synthetic();
     let dir = tempfile::tempdir().unwrap();
