@@ -150,11 +150,11 @@ impl SameRewardRow {
     /// freedom, so that rows at different levels of score share one estimate of a run's
     /// spread. `None` without rows.
     pub fn pooled_sd(rows: &[SameRewardRow]) -> Option<f64> {
-        let dof: usize = rows.iter().map(|r| r.runs.len() - 1).sum();
+        let dof: usize = rows.iter().map(|r| r.runs.len().saturating_sub(1)).sum();
         (dof > 0).then(|| {
             let ss: f64 = rows
                 .iter()
-                .map(|r| (r.runs.len() - 1) as f64 * r.sd * r.sd)
+                .map(|r| r.runs.len().saturating_sub(1) as f64 * r.sd * r.sd)
                 .sum();
             (ss / dof as f64).sqrt()
         })
