@@ -248,40 +248,51 @@ fn points_never_rewarded_are_named_and_marked() {
     );
 }
 
-#[test]
-fn the_torque_share_says_where_w2_shapes_the_reward() {
-    let mut d = synthetic();
-    let track = 0.05;
+/// Tracking reward per step given to every cell by [`with_torque_shares`].
+const TRACK: f64 = 0.05;
+
+/// `d` with 20 epochs of torque and tracking terms per cell whose
+/// |torque penalty| / tracking is 10^(w2 + 3): 1e-7 at w2 = -10, 10 at -2.
+fn with_torque_shares(mut d: ReportData) -> ReportData {
     for c in &mut d.cells {
-        // |torque penalty| / tracking = 10^(w2 + 3): 1e-7 at w2 = -10, 10 at -2.
-        let torque = -track * 10f64.powf(c.w2 + 3.0);
+        let torque = -TRACK * 10f64.powf(c.w2 + 3.0);
         c.curves.insert(
             "reward/torques".into(),
             (1..=20).map(|e| (e, torque)).collect(),
         );
         c.curves.insert(
             "reward/tracking_lin_vel".into(),
-            (1..=20).map(|e| (e, track)).collect(),
+            (1..=20).map(|e| (e, TRACK)).collect(),
         );
     }
-    let at = |d: &ReportData, t: usize, p: (usize, usize)| {
-        d.cells
-            .iter()
-            .position(|c| c.terrain_index == t && c.grid() == Some(p))
-            .unwrap()
-    };
-    let k = at(&d, 0, (1, 3));
+    d
+}
+
+/// Index in `d.cells` of terrain `t`'s cell at grid point `p`.
+fn cell_at(d: &ReportData, t: usize, p: (usize, usize)) -> usize {
+    d.cells
+        .iter()
+        .position(|c| c.terrain_index == t && c.grid() == Some(p))
+        .unwrap()
+}
+
+#[test]
+fn the_torque_share_says_where_w2_shapes_the_reward() {
+    let track = TRACK;
+    // |torque penalty| / tracking = 10^(w2 + 3): 1e-7 at w2 = -10, 10 at -2.
+    let mut d = with_torque_shares(synthetic());
+    let k = cell_at(&d, 0, (1, 3));
     assert!((d.cells[k].torque_share().unwrap() - 10.0).abs() < 1e-9);
     // Flat: w2 -10 (1e-7) and -7.33 (5e-5) are under 1%, -4.67 (0.02) is not.
     assert_eq!(d.negligible_torque_columns(0), vec![0, 1]);
     // Rough: one cell of column -7.33 whose penalty weighs half the tracking.
-    let k = at(&d, 1, (2, 1));
+    let k = cell_at(&d, 1, (2, 1));
     d.cells[k]
         .curves
         .insert("reward/torques".into(), vec![(1, -track), (2, 0.0)]);
     assert_eq!(d.negligible_torque_columns(1), vec![0]);
     // No tracking reward: no share.
-    let k = at(&d, 1, (0, 2));
+    let k = cell_at(&d, 1, (0, 2));
     d.cells[k]
         .curves
         .insert("reward/tracking_lin_vel".into(), vec![(1, 0.0)]);
@@ -312,20 +323,9 @@ fn the_torque_share_says_where_w2_shapes_the_reward() {
 
 #[test]
 fn runs_of_nearly_the_same_reward_give_the_spread_of_one_run() {
-    let mut d = synthetic();
-    let track = 0.05;
-    for c in &mut d.cells {
-        // |torque penalty| / tracking = 10^(w2 + 3): under 1% at w2 = -10 and -7.33 only.
-        let torque = -track * 10f64.powf(c.w2 + 3.0);
-        c.curves.insert(
-            "reward/torques".into(),
-            (1..=20).map(|e| (e, torque)).collect(),
-        );
-        c.curves.insert(
-            "reward/tracking_lin_vel".into(),
-            (1..=20).map(|e| (e, track)).collect(),
-        );
-    }
+    let track = TRACK;
+    // |torque penalty| / tracking = 10^(w2 + 3): under 1% at w2 = -10 and -7.33 only.
+    let mut d = with_torque_shares(synthetic());
     // Flat, every row: 0.1 i - 0.1125 at w2 = -10 and 0.1 i - 0.0125 at -7.33.
     let rows = d.same_reward_rows(0);
     assert_eq!(
@@ -346,19 +346,13 @@ fn runs_of_nearly_the_same_reward_give_the_spread_of_one_run() {
 
     // A replicate is not a first-seed run; a cell whose penalty weighs is not the same
     // reward; a third run joins its row, and the pooled SD weighs rows by their runs.
-    let at = |d: &ReportData, t: usize, p: (usize, usize)| {
-        d.cells
-            .iter()
-            .position(|c| c.terrain_index == t && c.grid() == Some(p))
-            .unwrap()
-    };
-    let k = at(&d, 0, (0, 0));
+    let k = cell_at(&d, 0, (0, 0));
     d.cells[k].replicate = 1;
-    let k = at(&d, 0, (1, 1));
+    let k = cell_at(&d, 0, (1, 1));
     d.cells[k]
         .curves
         .insert("reward/torques".into(), vec![(1, -track)]);
-    let k = at(&d, 0, (2, 2));
+    let k = cell_at(&d, 0, (2, 2));
     d.cells[k]
         .curves
         .insert("reward/torques".into(), vec![(1, 0.0)]);
