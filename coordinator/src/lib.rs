@@ -10,6 +10,7 @@ pub mod finalists;
 pub mod leases;
 pub mod live;
 pub mod loadgen;
+pub mod near_best;
 pub mod presets;
 pub mod report;
 pub mod sched;

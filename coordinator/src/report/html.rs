@@ -3,6 +3,7 @@
 
 use super::plots::{fmt_w, COMPONENTS};
 use super::{slug, GifStatus, ReportData};
+use crate::near_best::SpreadSource;
 use gaitsweep_model::{GaitScore, WALK_MAX_FALL_RATE, WALK_MAX_VEL_ERROR};
 use std::fmt::Write;
 use std::path::PathBuf;
@@ -191,6 +192,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
                 unrewarded_paragraph(&mut o, d, t);
                 torque_share_paragraph(&mut o, d, t);
                 same_reward_paragraph(&mut o, d, t);
+                near_best_paragraph(&mut o, d, t);
             }
         }
         fig(
@@ -263,6 +265,9 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
                 );
             }
             None => o.push_str("<p class=\"note\">No grid point is scored on every terrain with a positive best score yet: no weights for every terrain.</p>\n"),
+        }
+        if d.evolution.is_none() {
+            near_best_everywhere_paragraph(&mut o, d);
         }
         let (cells, _) = d.overlap();
         let list: Vec<String> = cells
@@ -403,10 +408,6 @@ fn unrewarded_paragraph(o: &mut String, d: &ReportData, t: usize) {
     if points.is_empty() {
         return;
     }
-    let names: Vec<String> = points
-        .iter()
-        .map(|&(i, j)| format!("({}, {})", fmt_w(d.w1_values[i]), fmt_w(d.w2_values[j])))
-        .collect();
     let _ = writeln!(
         o,
         "<p>Points never rewarded: <b>{}</b> (w1, w2) = {}. Their mean reward per step was 0 at every epoch: \
@@ -414,7 +415,7 @@ fn unrewarded_paragraph(o: &mut String, d: &ReportData, t: usize) {
          outweighed the positive terms, so PPO had no reward to learn from. Their scores are those of policies that \
          their weights taught nothing, marked &ldquo;no reward&rdquo; in the heatmap.</p>",
         points.len(),
-        names.join(", "),
+        point_names(d, &points),
     );
 }
 
@@ -468,5 +469,67 @@ fn same_reward_paragraph(o: &mut String, d: &ReportData, t: usize) {
         pooled,
         2.77 * pooled,
         items.join(""),
+    );
+}
+
+/// Names of grid points, "(w1, w2)" each, comma-separated; "none" for no point.
+fn point_names(d: &ReportData, points: &[(usize, usize)]) -> String {
+    if points.is_empty() {
+        return "none".to_string();
+    }
+    points
+        .iter()
+        .map(|&(i, j)| format!("({}, {})", fmt_w(d.w1_values[i]), fmt_w(d.w2_values[j])))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The points of terrain `t` that its runs cannot tell apart from the best
+/// ([`ReportData::near_best`]): the grid's answer as a set, with the spread it rests on.
+fn near_best_paragraph(o: &mut String, d: &ReportData, t: usize) {
+    let Some(n) = d.near_best(t) else {
+        return;
+    };
+    let source = match n.source {
+        SpreadSource::Replicates => "the seeds of the points trained more than once",
+        // Rows at the grid's edge can spread far more than those at its top (stairs in the
+        // ANYmal study: SD 0.297 at w1 = 5.33, 0.035 at 8.67), so this SD may be wide there.
+        SpreadSource::SameReward => {
+            "the runs of nearly the same reward above, pooled over rows of every level of \
+             score, so the set is generous where the top rows spread less; the seeds of \
+             points trained more than once (the finalists) replace it once scored"
+        }
+    };
+    let _ = writeln!(
+        o,
+        "<p>Points not told apart from the best at 95%: <b>{} of {}</b> scored, {}. The best, {}, has mean {:.3} over {} run{}; \
+         a point is behind it only when its mean is lower by more than t &middot; SD &middot; &radic;(1/n<sub>best</sub> + 1/n) \
+         ({:.3} for a single run), with one run's SD {:.3} ({} degrees of freedom) from {}.</p>",
+        n.near.len(),
+        n.scored,
+        point_names(d, &n.near),
+        point_names(d, &[n.best]),
+        n.best_mean,
+        n.best_runs,
+        if n.best_runs == 1 { "" } else { "s" },
+        n.lsd(1),
+        n.sd,
+        n.dof,
+        source,
+    );
+}
+
+/// The points near the best on every terrain at once: the paper's overlap of the terrains'
+/// peaks, read with each terrain's spread of one run.
+fn near_best_everywhere_paragraph(o: &mut String, d: &ReportData) {
+    let per_terrain: Option<Vec<_>> = (0..d.terrains.len()).map(|t| d.near_best(t)).collect();
+    let Some(per_terrain) = per_terrain else {
+        o.push_str("<p class=\"note\">Points not told apart from the best on every terrain: not yet (a terrain has no spread of one run to read it with).</p>\n");
+        return;
+    };
+    let _ = writeln!(
+        o,
+        "<p>Points not told apart from the best on every terrain at once (95%, each terrain's spread of one run): <b>{}</b>.</p>",
+        point_names(d, &crate::near_best::near_best_everywhere(&per_terrain)),
     );
 }

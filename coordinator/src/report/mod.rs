@@ -12,7 +12,9 @@
 //! - `gait.gif`: the promoted policy walking (`worker render`, run from the `worker` binary
 //!   next to this executable);
 //! - `index.html`: all of it with the table of cells, and per terrain the spread of one run
-//!   read from the runs of nearly the same reward ([`ReportData::same_reward_rows`]).
+//!   read from the runs of nearly the same reward ([`ReportData::same_reward_rows`]) and the
+//!   points not told apart from the best ([`ReportData::near_best`], labelled "near best"
+//!   in the score heatmap), on each terrain and on every terrain at once.
 //!
 //! Loading ([`load`]) is the only part that touches the database; everything else is a
 //! function of a [`ReportData`], so it is tested on synthetic data.
@@ -24,6 +26,7 @@ pub mod tensorboard;
 mod text;
 
 use crate::error::io;
+use crate::near_best::{NearBest, SpreadSource};
 use crate::shape::GridValues;
 use crate::store::queries::{self, EvalKinds};
 use crate::store::rows::{CellRow, CELL_COLUMNS, CELL_ORDER};
@@ -150,14 +153,16 @@ impl SameRewardRow {
     /// freedom, so that rows at different levels of score share one estimate of a run's
     /// spread. `None` without rows.
     pub fn pooled_sd(rows: &[SameRewardRow]) -> Option<f64> {
-        let dof: usize = rows.iter().map(|r| r.runs.len().saturating_sub(1)).sum();
-        (dof > 0).then(|| {
-            let ss: f64 = rows
-                .iter()
-                .map(|r| r.runs.len().saturating_sub(1) as f64 * r.sd * r.sd)
-                .sum();
-            (ss / dof as f64).sqrt()
-        })
+        Self::pooled(rows).map(|p| p.0)
+    }
+
+    /// [`SameRewardRow::pooled_sd`] with its degrees of freedom.
+    pub fn pooled(rows: &[SameRewardRow]) -> Option<(f64, usize)> {
+        let scores: Vec<Vec<f64>> = rows
+            .iter()
+            .map(|r| r.runs.iter().map(|run| run.1).collect())
+            .collect();
+        crate::near_best::pooled_sd(scores.iter().map(Vec::as_slice))
     }
 }
 
@@ -355,6 +360,29 @@ impl ReportData {
                 }
             })
             .collect()
+    }
+
+    /// The points of terrain `t` not told apart from its best point at 95%
+    /// ([`crate::near_best`]), over every replicate's score. One run's spread is pooled over
+    /// the points with more than one scored seed (the finalists) when there are any, else
+    /// over the rows' runs of nearly the same reward ([`ReportData::same_reward_rows`]).
+    /// `None` before either gives a degree of freedom.
+    pub fn near_best(&self, t: usize) -> Option<NearBest> {
+        let mut scores: BTreeMap<(usize, usize), Vec<f64>> = BTreeMap::new();
+        for c in self.cells_of(t) {
+            if let (Some(p), Some(v)) = (c.grid(), c.value()) {
+                scores.entry(p).or_default().push(v);
+            }
+        }
+        let (sd, dof, source) =
+            match crate::near_best::pooled_sd(scores.values().map(Vec::as_slice)) {
+                Some((sd, dof)) => (sd, dof, SpreadSource::Replicates),
+                None => {
+                    let (sd, dof) = SameRewardRow::pooled(&self.same_reward_rows(t))?;
+                    (sd, dof, SpreadSource::SameReward)
+                }
+            };
+        crate::near_best::near_best(&scores, sd, dof, source)
     }
 
     /// Cells `(w1_index, w2_index)` whose score is in the top quartile of their terrain's

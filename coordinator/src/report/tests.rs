@@ -407,6 +407,66 @@ fn runs_of_nearly_the_same_reward_give_the_spread_of_one_run() {
 }
 
 #[test]
+fn points_near_the_best_are_read_with_the_spread_of_one_run() {
+    // Without torque terms there is no run of nearly the same reward, and no replicate.
+    let d = synthetic();
+    assert_eq!(d.near_best(0), None);
+    // The page, and whether flat's score heatmap labels a cell "near best".
+    let html = |d: &ReportData| {
+        let dir = tempfile::tempdir().unwrap();
+        write_report(d, dir.path(), &GifStatus::NotMade("--no-gif".into())).unwrap();
+        let svg = std::fs::read_to_string(dir.path().join("score_flat.svg")).unwrap();
+        let page = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
+        (page, svg.matches("\nnear best\n").count())
+    };
+    let (page, labelled) = html(&d);
+    assert!(page.contains("Points not told apart from the best on every terrain: not yet"));
+    assert_eq!(labelled, 0);
+
+    // Flat's same-reward rows give SD 0.1 / sqrt(2) over 3 degrees of freedom (t 3.182):
+    // a single run is told apart only 0.318 below the best, so every scored point is near.
+    let mut d = with_torque_shares(synthetic());
+    let n = d.near_best(0).unwrap();
+    assert_eq!(n.source, crate::near_best::SpreadSource::SameReward);
+    assert_eq!((n.best, n.best_runs, n.dof, n.scored), ((2, 1), 1, 3, 11));
+    assert!((n.sd - 0.1 / 2f64.sqrt()).abs() < 1e-9);
+    assert_eq!(n.near.len(), 11);
+
+    // Two more seeds of flat's (12, -7.33) and (1, -7.33), each 0.01 either side of the
+    // first: one run's SD is now theirs, 0.01 over 4 degrees of freedom (t 2.776), and only
+    // (12, -4.67), equal to the best's mean, stays within 0.032 of it.
+    for (p, base) in [((2, 1), 0.1875), ((1, 1), 0.0875)] {
+        let k = cell_at(&d, 0, p);
+        for (r, delta) in [(1, -0.01), (2, 0.01)] {
+            let mut c = d.cells[k].clone();
+            c.id += 1000 * r;
+            c.replicate = r as u32;
+            c.score = Some(score(base + delta));
+            d.cells.push(c);
+        }
+    }
+    let n = d.near_best(0).unwrap();
+    assert_eq!(n.source, crate::near_best::SpreadSource::Replicates);
+    assert_eq!((n.best, n.best_runs, n.dof), ((2, 1), 3, 4));
+    assert!((n.sd - 0.01).abs() < 1e-9 && (n.lsd(1) - 0.03205).abs() < 1e-4);
+    assert_eq!(n.near, vec![(2, 1), (2, 2)]);
+    // Rough reads its own spread (row 1's two runs, t 12.7): all of its points are near.
+    let rough = d.near_best(1).unwrap();
+    assert_eq!(rough.near.len(), rough.scored);
+
+    let (page, labelled) = html(&d);
+    assert_eq!(labelled, 1, "(12, -4.67); the best keeps its own mark");
+    assert!(
+        page.contains("Points not told apart from the best at 95%: <b>2 of 11</b> scored, (12, -7.33), (12, -4.67). The best, (12, -7.33), has mean 0.188 over 3 runs; "),
+        "{page}"
+    );
+    assert!(page.contains("one run's SD 0.010 (4 degrees of freedom) from the seeds of the points trained more than once"));
+    assert!(page.contains(
+        "on every terrain at once (95%, each terrain's spread of one run): <b>(12, -7.33), (12, -4.67)</b>"
+    ));
+}
+
+#[test]
 fn every_picture_is_a_whole_png_and_svg() {
     let d = synthetic();
     let dir = tempfile::tempdir().unwrap();

@@ -25,6 +25,9 @@ pub(super) struct Heatmap<'a> {
     pub(super) marks: Vec<(usize, usize)>,
     /// Cells labelled "no reward" under their value ([`crate::report::ReportCell::never_rewarded`]).
     pub(super) unrewarded: Vec<(usize, usize)>,
+    /// Cells labelled "near best" under their value: not told apart from the best at 95%
+    /// ([`crate::report::ReportData::near_best`]); the best itself keeps its own mark.
+    pub(super) near: Vec<(usize, usize)>,
     pub(super) integer: bool,
     /// The values are log10 of a ratio: the colours follow the log, a cell's text is the
     /// ratio itself.
@@ -205,6 +208,11 @@ impl Figure for Heatmap<'_> {
         }
         for &(i, j) in &self.marks {
             label_under(i, j, "all terrains")?;
+        }
+        for &(i, j) in &self.near {
+            if best.is_none_or(|b| (b.0, b.1) != (i, j)) {
+                label_under(i, j, "near best")?;
+            }
         }
         for &(i, j) in &self.marks {
             let style = ShapeStyle::from(&RGBColor(220, 20, 60)).stroke_width(4);

@@ -273,11 +273,13 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
         let s = slug(terrain);
         let scored = d.cells_of(t).filter(|c| c.value().is_some()).count();
         let total = d.cells_of(t).count();
+        let near = d.near_best(t).map(|n| n.near).unwrap_or_default();
         let heat = Heatmap {
             title: format!("Gait score on {terrain}: {who}"),
             subtitle: format!(
-                "{scored} of {total} cells scored; higher is better; \u{2605} marks the best cell{}",
-                if d.terrains.len() > 1 { " on this terrain" } else { "" }
+                "{scored} of {total} cells scored; higher is better; \u{2605} marks the best cell{}{}",
+                if d.terrains.len() > 1 { " on this terrain" } else { "" },
+                if near.is_empty() { "" } else { "; near best: not told apart from it at 95%" }
             ),
             bar_label: "gait score".into(),
             w1: &d.w1_values,
@@ -287,6 +289,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
             better: Better::Higher,
             marks: vec![],
             unrewarded: d.unrewarded_points(t),
+            near,
             integer: false,
             log10: false,
         };
@@ -310,6 +313,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
             better: Better::Lower,
             marks: vec![],
             unrewarded: vec![],
+            near: vec![],
             integer: false,
             log10: false,
         };
@@ -339,6 +343,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
                 better: Better::None,
                 marks: vec![],
                 unrewarded: d.unrewarded_points(t),
+                near: vec![],
                 integer: false,
                 log10: true,
             };
@@ -360,6 +365,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
                 },
                 marks: vec![],
                 unrewarded: vec![],
+                near: vec![],
                 integer: false,
                 log10: false,
             };
@@ -399,6 +405,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
             better: Better::None,
             marks: cells,
             unrewarded: vec![],
+            near: vec![],
             integer: true,
             log10: false,
         };
