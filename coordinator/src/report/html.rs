@@ -441,9 +441,11 @@ fn torque_share_paragraph(o: &mut String, d: &ReportData, t: usize) {
 /// ([`ReportData::same_reward_rows`]).
 fn same_reward_paragraph(o: &mut String, d: &ReportData, t: usize) {
     let rows = d.same_reward_rows(t);
-    let Some(pooled) = super::SameRewardRow::pooled_sd(&rows) else {
+    let Some((pooled, dof)) = super::SameRewardRow::pooled(&rows) else {
         return;
     };
+    // Student's t over the pooled degrees of freedom, as for the points near the best.
+    let t975 = gaitsweep_core::stats::t975(dof);
     let items: Vec<String> = rows
         .iter()
         .map(|r| {
@@ -463,11 +465,13 @@ fn same_reward_paragraph(o: &mut String, d: &ReportData, t: usize) {
         o,
         "<p>Runs of nearly the same reward (first seed, torque penalty under {:.0}% of the tracking reward): \
          within a row they differ by their seeds, not their weights, so their spread is that of a single run. \
-         Pooled SD <b>{:.3}</b>: two single runs are told apart at 95% only when their scores differ by more than \
-         {:.3} (2.77 SD).</p>\n<ul>{}</ul>",
+         Pooled SD <b>{:.3}</b> ({} degrees of freedom): two single runs are told apart at 95% only when their \
+         scores differ by more than {:.3} (t &middot; &radic;2 &middot; SD, t = {:.3}).</p>\n<ul>{}</ul>",
         100.0 * super::NEGLIGIBLE_TORQUE_SHARE,
         pooled,
-        2.77 * pooled,
+        dof,
+        t975 * std::f64::consts::SQRT_2 * pooled,
+        t975,
         items.join(""),
     );
 }

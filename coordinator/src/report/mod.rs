@@ -151,12 +151,7 @@ pub struct SameRewardRow {
 impl SameRewardRow {
     /// The rows' pooled standard deviation: each row's variance weighted by its degrees of
     /// freedom, so that rows at different levels of score share one estimate of a run's
-    /// spread. `None` without rows.
-    pub fn pooled_sd(rows: &[SameRewardRow]) -> Option<f64> {
-        Self::pooled(rows).map(|p| p.0)
-    }
-
-    /// [`SameRewardRow::pooled_sd`] with its degrees of freedom.
+    /// spread. `Some((sd, degrees of freedom))`, `None` without rows.
     pub fn pooled(rows: &[SameRewardRow]) -> Option<(f64, usize)> {
         let scores: Vec<Vec<f64>> = rows
             .iter()

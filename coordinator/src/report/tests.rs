@@ -338,7 +338,9 @@ fn runs_of_nearly_the_same_reward_give_the_spread_of_one_run() {
         assert!((r.mean - (0.1 * r.w1_index as f64 - 0.0625)).abs() < 1e-9);
         assert!((r.sd - sd).abs() < 1e-9, "{r:?}");
     }
-    assert!((SameRewardRow::pooled_sd(&rows).unwrap() - sd).abs() < 1e-9);
+    let (pooled, dof) = SameRewardRow::pooled(&rows).unwrap();
+    assert!((pooled - sd).abs() < 1e-9);
+    assert_eq!(dof, 3, "three rows of two runs");
     // Rough: row 0's -10 has no finite score and row 2's -10 failed, so one run each is
     // left: only row 1 has a spread.
     let rows = d.same_reward_rows(1);
@@ -382,15 +384,22 @@ fn runs_of_nearly_the_same_reward_give_the_spread_of_one_run() {
         },
     ];
     let pooled = ((2.0 * var + 0.5) / 3.0).sqrt();
-    assert!((SameRewardRow::pooled_sd(&two).unwrap() - pooled).abs() < 1e-9);
-    assert_eq!(SameRewardRow::pooled_sd(&[]), None);
+    let (sd, dof) = SameRewardRow::pooled(&two).unwrap();
+    assert!((sd - pooled).abs() < 1e-9);
+    assert_eq!(dof, 3);
+    assert_eq!(SameRewardRow::pooled(&[]), None);
 
     let dir = tempfile::tempdir().unwrap();
     let gif = GifStatus::NotMade("--no-gif".into());
     write_report(&d, dir.path(), &gif).unwrap();
     let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
     assert!(
-        html.contains(&format!("Pooled SD <b>{:.3}</b>", var.sqrt())),
+        html.contains(&format!(
+            "Pooled SD <b>{:.3}</b> (2 degrees of freedom): two single runs are told apart at 95% only when their \
+             scores differ by more than {:.3} (t &middot; &radic;2 &middot; SD, t = 4.303)",
+            var.sqrt(),
+            4.303 * 2f64.sqrt() * var.sqrt()
+        )),
         "flat's one row"
     );
     let scores: Vec<String> = r.runs.iter().map(|x| format!("{:.3}", x.1)).collect();
