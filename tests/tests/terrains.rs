@@ -141,5 +141,9 @@ async fn a_two_terrain_sweep_scores_every_level_and_promotes_the_point_best_acro
         "report has no across-terrains line"
     );
     assert!(html.contains("L5 "), "report has no per-level scores");
+    assert!(
+        html.contains("Points not told apart from the best on every terrain"),
+        "report has no near-best line across terrains"
+    );
     assert!(html.contains("rough at levels 0, 5") && html.contains("progress term: bounded"));
 }
