@@ -49,6 +49,18 @@ pub struct AcrossTerrains {
     pub cell: CellId,
 }
 
+impl AcrossTerrains {
+    /// Its interval as people read it: "± 1.2%" of the weakest terrain's best, or, while
+    /// the point has one scored seed there (`ci95` 0), that there is none yet.
+    pub fn interval_text(&self) -> String {
+        if self.ci95 > 0.0 {
+            format!("\u{b1} {:.1}%", 100.0 * self.ci95)
+        } else {
+            "(one seed: no interval yet)".to_string()
+        }
+    }
+}
+
 /// A point's scored replicates on one terrain.
 type Replicates = Vec<(CellId, f64)>;
 
@@ -163,6 +175,11 @@ mod tests {
         assert_eq!((a.w1_index, a.w2_index), (0, 1));
         assert!((a.value - 0.9).abs() < 1e-12);
         assert_eq!(a.relative.len(), 2);
+        assert_eq!(
+            a.interval_text(),
+            "(one seed: no interval yet)",
+            "not \u{b1} 0.0%"
+        );
         assert_eq!(best_across(&cells, 1), None);
     }
 
@@ -180,7 +197,9 @@ mod tests {
         assert_eq!((a.w1_index, a.weakest), (0, 1));
         assert!((a.value - 0.5).abs() < 1e-12, "{a:?}");
         assert_eq!(a.cell, CellId(4));
-        assert!(a.ci95 > 0.0);
+        // 0.5 and 0.7: t(1) 12.706 x SD 0.141 / sqrt 2 = 1.271, over the best mean 1.2.
+        assert!((a.ci95 - 12.706 * 0.02f64.sqrt() / 2f64.sqrt() / 1.2).abs() < 1e-9);
+        assert_eq!(a.interval_text(), "\u{b1} 105.9%");
     }
 
     #[test]

@@ -257,12 +257,12 @@ pub(crate) fn across_line(spec: &pb::SweepSpec, s: &pb::Sweep, cells: &[pb::Cell
                 .map(|(t, r)| format!("{t} {:.1}%", 100.0 * r))
                 .collect();
             format!(
-                "\nacross terrains ({}): w1 {:.3}, w2 {:.3}: {:.1}% ± {:.1}% of the best on its weakest terrain, {} ({}){}",
+                "\nacross terrains ({}): w1 {:.3}, w2 {:.3}: {:.1}% {} of the best on its weakest terrain, {} ({}){}",
                 across::RULE,
                 s.w1_values.get(a.w1_index as usize).copied().unwrap_or(f64::NAN),
                 s.w2_values.get(a.w2_index as usize).copied().unwrap_or(f64::NAN),
                 100.0 * a.value,
-                100.0 * a.ci95,
+                a.interval_text(),
                 spec.terrains.get(a.weakest).map_or("?", String::as_str),
                 rel.join(", "),
                 if s.state == pb::SweepState::Done as i32 { "" } else { " (sweep still running)" }

@@ -254,12 +254,12 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
                     .collect();
                 let _ = writeln!(
                     o,
-                    "<p>Weights for every terrain ({}): <b>w1 {}, w2 {}</b>, {:.1}% \u{b1} {:.1}% of the best point on its weakest terrain, {} ({}).</p>",
+                    "<p>Weights for every terrain ({}): <b>w1 {}, w2 {}</b>, {:.1}% {} of the best point on its weakest terrain, {} ({}).</p>",
                     esc(crate::across::RULE),
                     fmt_w(d.w1_values[a.w1_index as usize]),
                     fmt_w(d.w2_values[a.w2_index as usize]),
                     100.0 * a.value,
-                    100.0 * a.ci95,
+                    a.interval_text(),
                     esc(&d.terrains[a.weakest]),
                     esc(&rel.join(", "))
                 );
