@@ -359,24 +359,42 @@ impl ReportData {
 
     /// The points of terrain `t` not told apart from its best point at 95%
     /// ([`crate::near_best`]), over every replicate's score. One run's spread is pooled over
-    /// the points with more than one scored seed (the finalists) when there are any, else
-    /// over the rows' runs of nearly the same reward ([`ReportData::same_reward_rows`]).
-    /// `None` before either gives a degree of freedom.
+    /// the points trained on more than one seed (the finalists) once every one of their
+    /// cells is settled (scored or failed), else over the rows' runs of nearly the same
+    /// reward ([`ReportData::same_reward_rows`]): a half-trained finalist stage would give
+    /// a degree of freedom or two, and a t quantile that widens the set tenfold. `None`
+    /// before either gives a degree of freedom.
     pub fn near_best(&self, t: usize) -> Option<NearBest> {
         let mut scores: BTreeMap<(usize, usize), Vec<f64>> = BTreeMap::new();
+        // Per point trained more than once: whether all its cells are settled.
+        let mut replicated: BTreeMap<(usize, usize), bool> = BTreeMap::new();
         for c in self.cells_of(t) {
-            if let (Some(p), Some(v)) = (c.grid(), c.value()) {
+            let Some(p) = c.grid() else { continue };
+            if let Some(v) = c.value() {
                 scores.entry(p).or_default().push(v);
             }
+            if c.replicate > 0 {
+                replicated.insert(p, true);
+            }
         }
-        let (sd, dof, source) =
-            match crate::near_best::pooled_sd(scores.values().map(Vec::as_slice)) {
-                Some((sd, dof)) => (sd, dof, SpreadSource::Replicates),
-                None => {
-                    let (sd, dof) = SameRewardRow::pooled(&self.same_reward_rows(t))?;
-                    (sd, dof, SpreadSource::SameReward)
-                }
-            };
+        for c in self.cells_of(t) {
+            if let Some(settled) = c.grid().and_then(|p| replicated.get_mut(&p)) {
+                *settled &= c.value().is_some() || c.state == "failed";
+            }
+        }
+        let same_reward = || {
+            SameRewardRow::pooled(&self.same_reward_rows(t))
+                .map(|(sd, dof)| (sd, dof, SpreadSource::SameReward))
+        };
+        let replicates = || {
+            crate::near_best::pooled_sd(scores.values().map(Vec::as_slice))
+                .map(|(sd, dof)| (sd, dof, SpreadSource::Replicates))
+        };
+        let (sd, dof, source) = if !replicated.is_empty() && replicated.values().all(|s| *s) {
+            replicates().or_else(same_reward)?
+        } else {
+            same_reward().or_else(replicates)?
+        };
         crate::near_best::near_best(&scores, sd, dof, source)
     }
 

@@ -459,6 +459,20 @@ fn points_near_the_best_are_read_with_the_spread_of_one_run() {
     assert_eq!((n.best, n.best_runs, n.dof), ((2, 1), 3, 4));
     assert!((n.sd - 0.01).abs() < 1e-9 && (n.lsd(1) - 0.03205).abs() < 1e-4);
     assert_eq!(n.near, vec![(2, 1), (2, 2)]);
+    // A finalist stage half trained: a queued seed of (7, -10) keeps the same-reward SD.
+    let mut queued = d.cells[cell_at(&d, 0, (1, 0))].clone();
+    (queued.id, queued.replicate, queued.state, queued.score) = (5000, 1, "queued".into(), None);
+    d.cells.push(queued);
+    assert_eq!(
+        d.near_best(0).unwrap().source,
+        crate::near_best::SpreadSource::SameReward
+    );
+    d.cells.last_mut().unwrap().state = "failed".into();
+    assert_eq!(
+        d.near_best(0).unwrap(),
+        n,
+        "a failed seed settles its point"
+    );
     // Rough reads its own spread (row 1's two runs, t 12.7): all of its points are near.
     let rough = d.near_best(1).unwrap();
     assert_eq!(rough.near.len(), rough.scored);
