@@ -43,6 +43,8 @@ pub struct AcrossTerrains {
     pub ci95: f64,
     /// The terrain where its value is lowest.
     pub weakest: usize,
+    /// Its scored seeds on that terrain.
+    pub seeds: usize,
     /// Its relative value on each terrain, by terrain index.
     pub relative: Vec<f64>,
     /// Its best replicate on the weakest terrain: the cell a promotion row names.
@@ -51,9 +53,9 @@ pub struct AcrossTerrains {
 
 impl AcrossTerrains {
     /// Its interval as people read it: "± 1.2%" of the weakest terrain's best, or, while
-    /// the point has one scored seed there (`ci95` 0), that there is none yet.
+    /// the point has one scored seed there, that there is none yet.
     pub fn interval_text(&self) -> String {
-        if self.ci95 > 0.0 {
+        if self.seeds > 1 {
             format!("\u{b1} {:.1}%", 100.0 * self.ci95)
         } else {
             "(one seed: no interval yet)".to_string()
@@ -138,6 +140,7 @@ pub fn best_across(cells: &[ScoredCell], terrains: usize) -> Option<AcrossTerrai
                 value,
                 ci95: s.ci95 / best_mean[weakest],
                 weakest,
+                seeds: s.n,
                 relative,
                 cell,
             });

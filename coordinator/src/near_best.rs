@@ -8,7 +8,7 @@
 
 use std::collections::BTreeMap;
 
-use gaitsweep_core::stats::t975;
+use gaitsweep_core::stats::{t975, Summary};
 
 /// A grid point `(w1_index, w2_index)`.
 pub type GridPoint = (usize, usize);
@@ -20,12 +20,10 @@ pub fn pooled_sd<'a>(groups: impl IntoIterator<Item = &'a [f64]>) -> Option<(f64
     let (mut ss, mut dof) = (0.0, 0usize);
     for g in groups {
         let runs: Vec<f64> = g.iter().copied().filter(|v| v.is_finite()).collect();
-        if runs.len() < 2 {
-            continue;
+        if let Some(s) = Summary::of(&runs).filter(|s| s.n > 1) {
+            ss += s.sd * s.sd * (s.n - 1) as f64;
+            dof += s.n - 1;
         }
-        let mean = runs.iter().sum::<f64>() / runs.len() as f64;
-        ss += runs.iter().map(|v| (v - mean).powi(2)).sum::<f64>();
-        dof += runs.len() - 1;
     }
     (dof > 0).then(|| ((ss / dof as f64).sqrt(), dof))
 }
@@ -45,7 +43,7 @@ pub enum SpreadSource {
 pub struct NearBest {
     /// The best point by mean score (ties: the lower grid index).
     pub best: GridPoint,
-    /// Its mean and number of runs.
+    /// Its mean score.
     pub best_mean: f64,
     /// Runs of the best point.
     pub best_runs: usize,
@@ -84,8 +82,7 @@ pub fn near_best(
         .iter()
         .filter_map(|(&p, runs)| {
             let runs: Vec<f64> = runs.iter().copied().filter(|v| v.is_finite()).collect();
-            (!runs.is_empty())
-                .then(|| (p, runs.iter().sum::<f64>() / runs.len() as f64, runs.len()))
+            Summary::of(&runs).map(|s| (p, s.mean, s.n))
         })
         .collect();
     // Grid order, so a strictly higher mean wins and ties keep the lower index.
@@ -173,6 +170,13 @@ mod tests {
             n.near,
             vec![(0, 0), (0, 1), (0, 2)],
             "0.85 (3 runs) and 0.75 (1 run) are within reach; 0.7 (1 run) and 0.8 (3 runs) are not"
+        );
+        let tie = grid(&[((0, 1), &[0.5]), ((1, 0), &[0.5]), ((0, 0), &[0.2])]);
+        let t = near_best(&tie, 0.01, 5, SpreadSource::SameReward).unwrap();
+        assert_eq!(
+            (t.best, t.near.clone()),
+            ((0, 1), vec![(0, 1), (1, 0)]),
+            "a tie keeps the lower index"
         );
         assert_eq!(near_best(&scores, 0.1, 0, SpreadSource::Replicates), None);
         assert_eq!(

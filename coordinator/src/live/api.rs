@@ -232,6 +232,7 @@ pub(crate) async fn sweep(State(live): State<Live>, Path(id): Path<i64>) -> ApiR
             "w2": data.w2_values.get(a.w2_index as usize),
             "value": a.value,
             "ci95": a.ci95,
+            "interval": a.interval_text(),
             "weakest": data.terrains.get(a.weakest),
             "relative": a.relative,
         })),

@@ -270,24 +270,10 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
             near_best_everywhere_paragraph(&mut o, d);
         }
         let (cells, _) = d.overlap();
-        let list: Vec<String> = cells
-            .iter()
-            .map(|&(i, j)| {
-                format!(
-                    "(w1 {}, w2 {})",
-                    fmt_w(d.w1_values[i]),
-                    fmt_w(d.w2_values[j])
-                )
-            })
-            .collect();
         let _ = writeln!(
             o,
-            "<p>Cells in the top quartile of scores on every terrain at once: {}.</p>",
-            if list.is_empty() {
-                "none".to_string()
-            } else {
-                list.join(", ")
-            }
+            "<p>Cells (w1, w2) in the top quartile of scores on every terrain at once: {}.</p>",
+            point_names(d, &cells)
         );
         fig(
             &mut o,
@@ -465,11 +451,11 @@ fn same_reward_paragraph(o: &mut String, d: &ReportData, t: usize) {
         o,
         "<p>Runs of nearly the same reward (first seed, torque penalty under {:.0}% of the tracking reward): \
          within a row they differ by their seeds, not their weights, so their spread is that of a single run. \
-         Pooled SD <b>{:.3}</b> ({} degrees of freedom): two single runs are told apart at 95% only when their \
+         Pooled SD <b>{:.3}</b> ({}): two single runs are told apart at 95% only when their \
          scores differ by more than {:.3} (t &middot; &radic;2 &middot; SD, t = {:.3}).</p>\n<ul>{}</ul>",
         100.0 * super::NEGLIGIBLE_TORQUE_SHARE,
         pooled,
-        dof,
+        dof_text(dof),
         t975 * std::f64::consts::SQRT_2 * pooled,
         t975,
         items.join(""),
@@ -497,7 +483,7 @@ fn near_best_paragraph(o: &mut String, d: &ReportData, t: usize) {
     let source = match n.source {
         SpreadSource::Replicates => "the seeds of the points trained more than once",
         // Rows at the grid's edge can spread far more than those at its top (stairs in the
-        // ANYmal study: SD 0.297 at w1 = 5.33, 0.035 at 8.67), so this SD may be wide there.
+        // ANYmal study: SD 0.297 at w1 = 5.33, 0.034 at 8.67), so this SD may be wide there.
         SpreadSource::SameReward => {
             "the runs of nearly the same reward above, pooled over rows of every level of \
              score, so the set is generous where the top rows spread less; the seeds of \
@@ -508,7 +494,7 @@ fn near_best_paragraph(o: &mut String, d: &ReportData, t: usize) {
         o,
         "<p>Points not told apart from the best at 95%: <b>{} of {}</b> scored, {}. The best, {}, has mean {:.3} over {} run{}; \
          a point is behind it only when its mean is lower by more than t &middot; SD &middot; &radic;(1/n<sub>best</sub> + 1/n) \
-         ({:.3} for a single run), with one run's SD {:.3} ({} degrees of freedom) from {}.</p>",
+         ({:.3} for a single run), with one run's SD {:.3} ({}) from {}.</p>",
         n.near.len(),
         n.scored,
         point_names(d, &n.near),
@@ -518,7 +504,7 @@ fn near_best_paragraph(o: &mut String, d: &ReportData, t: usize) {
         if n.best_runs == 1 { "" } else { "s" },
         n.lsd(1),
         n.sd,
-        n.dof,
+        dof_text(n.dof),
         source,
     );
 }
@@ -536,4 +522,9 @@ fn near_best_everywhere_paragraph(o: &mut String, d: &ReportData) {
         "<p>Points not told apart from the best on every terrain at once (95%, each terrain's spread of one run): <b>{}</b>.</p>",
         point_names(d, &crate::near_best::near_best_everywhere(&per_terrain)),
     );
+}
+
+/// "1 degree of freedom", "n degrees of freedom".
+fn dof_text(dof: usize) -> String {
+    format!("{dof} degree{} of freedom", if dof == 1 { "" } else { "s" })
 }

@@ -32,6 +32,7 @@ use crate::store::queries::{self, EvalKinds};
 use crate::store::rows::{CellRow, CELL_COLUMNS, CELL_ORDER};
 use crate::Result;
 use gaitsweep_core::records::CellRecord;
+use gaitsweep_core::stats::Summary;
 use gaitsweep_core::{Place, SweepId};
 use gaitsweep_model::GaitScore;
 use gaitsweep_search::Layout;
@@ -205,6 +206,9 @@ pub struct ReportData {
     pub search_title: String,
     /// What the sweep was given to spend: robots, epochs, search, seeds, evaluation.
     pub budget: String,
+    /// Whether the sweep has a finalist stage (`[finalists]`): its points' first seeds were
+    /// picked for scoring high ([`ReportData::near_best`]).
+    pub finalists: bool,
 }
 
 impl ReportData {
@@ -342,59 +346,63 @@ impl ReportData {
         }
         rows.into_iter()
             .filter(|(_, runs)| runs.len() > 1)
-            .map(|(w1_index, mut runs)| {
+            .filter_map(|(w1_index, mut runs)| {
                 runs.sort_by_key(|r| r.0);
-                let n = runs.len() as f64;
-                let mean = runs.iter().map(|r| r.1).sum::<f64>() / n;
-                let var = runs.iter().map(|r| (r.1 - mean).powi(2)).sum::<f64>() / (n - 1.0);
-                SameRewardRow {
+                let s = Summary::of(&runs.iter().map(|r| r.1).collect::<Vec<_>>())?;
+                Some(SameRewardRow {
                     w1_index,
                     runs,
-                    mean,
-                    sd: var.sqrt(),
-                }
+                    mean: s.mean,
+                    sd: s.sd,
+                })
             })
             .collect()
     }
 
     /// The points of terrain `t` not told apart from its best point at 95%
     /// ([`crate::near_best`]), over every replicate's score. One run's spread is pooled over
-    /// the points trained on more than one seed (the finalists) once every one of their
-    /// cells is settled (scored or failed), else over the rows' runs of nearly the same
-    /// reward ([`ReportData::same_reward_rows`]): a half-trained finalist stage would give
-    /// a degree of freedom or two, and a t quantile that widens the set tenfold. `None`
-    /// before either gives a degree of freedom.
+    /// the points trained on more than one seed once every one of their cells has ended
+    /// (scored, failed, cancelled or stopped); until then a finalist stage would give a
+    /// degree of freedom or two, whose t quantile widens the set several times over, and the
+    /// spread is read from the rows' runs of nearly the same reward
+    /// ([`ReportData::same_reward_rows`]) instead. After a finalist stage only the seeds
+    /// drawn after the selection count: the first was picked for scoring high, so with it
+    /// the spread would come out wider than a run's. `None` before either gives a degree
+    /// of freedom.
     pub fn near_best(&self, t: usize) -> Option<NearBest> {
         let mut scores: BTreeMap<(usize, usize), Vec<f64>> = BTreeMap::new();
-        // Per point trained more than once: whether all its cells are settled.
+        let mut unselected: BTreeMap<(usize, usize), Vec<f64>> = BTreeMap::new();
+        // Per point trained more than once: whether all its cells have ended.
         let mut replicated: BTreeMap<(usize, usize), bool> = BTreeMap::new();
         for c in self.cells_of(t) {
             let Some(p) = c.grid() else { continue };
             if let Some(v) = c.value() {
                 scores.entry(p).or_default().push(v);
+                if !self.finalists || c.replicate > 0 {
+                    unselected.entry(p).or_default().push(v);
+                }
             }
             if c.replicate > 0 {
                 replicated.insert(p, true);
             }
         }
         for c in self.cells_of(t) {
-            if let Some(settled) = c.grid().and_then(|p| replicated.get_mut(&p)) {
-                *settled &= c.value().is_some() || c.state == "failed";
+            if let Some(ended) = c.grid().and_then(|p| replicated.get_mut(&p)) {
+                *ended &= c
+                    .state
+                    .parse::<gaitsweep_core::CellState>()
+                    .is_ok_and(gaitsweep_core::CellState::is_terminal);
             }
         }
-        let same_reward = || {
+        let stage_ended = !replicated.is_empty() && replicated.values().all(|e| *e);
+        let replicates = stage_ended
+            .then(|| crate::near_best::pooled_sd(unselected.values().map(Vec::as_slice)))
+            .flatten()
+            .map(|(sd, dof)| (sd, dof, SpreadSource::Replicates));
+        let (sd, dof, source) = replicates.or_else(|| {
             SameRewardRow::pooled(&self.same_reward_rows(t))
                 .map(|(sd, dof)| (sd, dof, SpreadSource::SameReward))
-        };
-        let replicates = || {
-            crate::near_best::pooled_sd(scores.values().map(Vec::as_slice))
-                .map(|(sd, dof)| (sd, dof, SpreadSource::Replicates))
-        };
-        let (sd, dof, source) = if !replicated.is_empty() && replicated.values().all(|s| *s) {
-            replicates().or_else(same_reward)?
-        } else {
-            same_reward().or_else(replicates)?
-        };
+        })?;
         crate::near_best::near_best(&scores, sd, dof, source)
     }
 
@@ -464,6 +472,7 @@ pub async fn load(db: &sqlx::AnyPool, sweep: i64) -> Result<ReportData> {
         search: search.name.to_string(),
         search_title: search.title.to_string(),
         budget: budget_text(&spec),
+        finalists: spec.finalists.is_some(),
     };
 
     let sql = format!(

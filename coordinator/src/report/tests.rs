@@ -111,6 +111,7 @@ fn synthetic() -> ReportData {
         search: "grid".into(),
         search_title: "grid search".into(),
         budget: "64 robots per cell".into(),
+        finalists: false,
     }
 }
 
@@ -467,12 +468,21 @@ fn points_near_the_best_are_read_with_the_spread_of_one_run() {
         d.near_best(0).unwrap().source,
         crate::near_best::SpreadSource::SameReward
     );
-    d.cells.last_mut().unwrap().state = "failed".into();
+    for ended in ["failed", "cancelled", "stopped"] {
+        d.cells.last_mut().unwrap().state = ended.into();
+        assert_eq!(d.near_best(0).unwrap(), n, "a {ended} seed has ended");
+    }
+    // After a finalist stage the first seeds, picked for scoring high, are left out of the
+    // spread: 0.1775 / 0.1975 and 0.0775 / 0.0975 pool to SD 0.0141 over 2 degrees of freedom.
+    let mut f = d.clone();
+    f.finalists = true;
+    let fin = f.near_best(0).unwrap();
     assert_eq!(
-        d.near_best(0).unwrap(),
-        n,
-        "a failed seed settles its point"
+        (fin.dof, fin.best_runs),
+        (2, 3),
+        "the means keep every seed"
     );
+    assert!((fin.sd - 0.0002f64.sqrt()).abs() < 1e-9, "{fin:?}");
     // Rough reads its own spread (row 1's two runs, t 12.7): all of its points are near.
     let rough = d.near_best(1).unwrap();
     assert_eq!(rough.near.len(), rough.scored);

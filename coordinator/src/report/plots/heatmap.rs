@@ -189,7 +189,7 @@ impl Figure for Heatmap<'_> {
                 }
             }
         }
-        // A small label under a cell's value ("all terrains", "no reward"), inked against
+        // A small label under a cell's value ("all terrains", "no reward", "near best"), inked against
         // the cell's colour.
         let mut label_under = |i: usize, j: usize, text: &str| {
             let bg = self.values[i][j].map_or(RGBColor(225, 225, 225), |v| colormap(norm(v)));
@@ -210,7 +210,11 @@ impl Figure for Heatmap<'_> {
             label_under(i, j, "all terrains")?;
         }
         for &(i, j) in &self.near {
-            if best.is_none_or(|b| (b.0, b.1) != (i, j)) {
+            // The best keeps its own mark, and one label fits under a value.
+            if best.is_none_or(|b| (b.0, b.1) != (i, j))
+                && !self.unrewarded.contains(&(i, j))
+                && !self.marks.contains(&(i, j))
+            {
                 label_under(i, j, "near best")?;
             }
         }
