@@ -372,8 +372,8 @@ impl ReportData {
     pub fn near_best(&self, t: usize) -> Option<NearBest> {
         let mut scores: BTreeMap<(usize, usize), Vec<f64>> = BTreeMap::new();
         let mut unselected: BTreeMap<(usize, usize), Vec<f64>> = BTreeMap::new();
-        // Per point trained more than once: whether all its cells have ended.
-        let mut replicated: BTreeMap<(usize, usize), bool> = BTreeMap::new();
+        // Per point: (trained more than once, every one of its cells ended).
+        let mut stage: BTreeMap<(usize, usize), (bool, bool)> = BTreeMap::new();
         for c in self.cells_of(t) {
             let Some(p) = c.grid() else { continue };
             if let Some(v) = c.value() {
@@ -382,19 +382,15 @@ impl ReportData {
                     unselected.entry(p).or_default().push(v);
                 }
             }
-            if c.replicate > 0 {
-                replicated.insert(p, true);
-            }
+            let (replicated, ended) = stage.entry(p).or_insert((false, true));
+            *replicated |= c.replicate > 0;
+            *ended &= c
+                .state
+                .parse::<gaitsweep_core::CellState>()
+                .is_ok_and(gaitsweep_core::CellState::is_terminal);
         }
-        for c in self.cells_of(t) {
-            if let Some(ended) = c.grid().and_then(|p| replicated.get_mut(&p)) {
-                *ended &= c
-                    .state
-                    .parse::<gaitsweep_core::CellState>()
-                    .is_ok_and(gaitsweep_core::CellState::is_terminal);
-            }
-        }
-        let stage_ended = !replicated.is_empty() && replicated.values().all(|e| *e);
+        let mut replicated = stage.values().filter(|s| s.0).peekable();
+        let stage_ended = replicated.peek().is_some() && replicated.all(|s| s.1);
         let replicates = stage_ended
             .then(|| crate::near_best::pooled_sd(unselected.values().map(Vec::as_slice)))
             .flatten()
