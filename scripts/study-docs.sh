@@ -3,7 +3,8 @@
 # committed snapshot studies/recordings/ROBOT (never the live data dir, never for writing),
 # writes the report's score heatmaps (peak marked), 3D surfaces, fall rates, the score's
 # tracking component, torque shares and the overlap across terrains to docs/study/ROBOT/
-# (replacing the pictures there), and each terrain's
+# (replacing the pictures there) with findings.md (the paper's findings beside the sweep's),
+# and each terrain's
 # grid as JSON to tests/data/study-ROBOT-TERRAIN.json once every point of it is scored.
 #
 #   scripts/study-docs.sh anymal
@@ -35,7 +36,7 @@ cp "$SNAP/gaitsweep.sqlite" "$TMP/data/"
 OUT="docs/study/$ROBOT"
 mkdir -p "$OUT"
 rm -f "$OUT"/*.png
-for f in "$TMP"/report/{score,surface,fall_rate,track,torque_share}_*.png "$TMP/report/overlap.png"; do
+for f in "$TMP"/report/{score,surface,fall_rate,track,torque_share}_*.png "$TMP/report/overlap.png" "$TMP/report/findings.md"; do
   [ -e "$f" ] && cp "$f" "$OUT/"
 done
 echo "pictures: $(ls "$OUT" | tr '\n' ' ')in $OUT"

@@ -1,7 +1,8 @@
 //! The shape of a terrain's score grid, for holding a sweep against the paper's findings
 //! (issue 39 item 5): where the peak is (in the grid's interior or on its edge), whether
-//! the score rises towards it between neighbouring points, and which rows of w1 stand
-//! still at every w2 (the heavy robot's w1 = 2 row in the paper). Pure: the report gives
+//! the score rises towards it between neighbouring points, how much of the score's range
+//! one step spans (a cliff), and which rows of w1 stand still at every w2 (the heavy
+//! robot's w1 = 2 row in the paper). Pure: the report gives
 //! it the grid's point means.
 
 /// Below this mean speed (m/s) a grid point counts as standing still: the command
@@ -25,14 +26,24 @@ pub struct Shape {
     pub rising: usize,
     /// Such steps compared.
     pub steps: usize,
+    /// The largest score difference between two neighbouring scored points, as a share of
+    /// the grid's range (best point minus lowest): near 1 where one step spans the whole
+    /// range, a cliff; a raised peak climbs in several smaller steps. `None` without a
+    /// compared step or with every point equal.
+    pub largest_step: Option<f64>,
     /// Rows (w1 indices) whose every point is scored and stands still (mean speed under
-    /// [`STANDING_SPEED`]).
+    /// [`STANDING_SPEED`]), leaving out the points never rewarded (at least one must remain).
     pub standing_rows: Vec<usize>,
 }
 
 /// The shape of a grid of point means `score[i][j]` (w1 index i, w2 index j) with the
-/// points' mean speeds; `None` when no point is scored.
-pub fn shape(score: &[Vec<Option<f64>>], speed: &[Vec<Option<f64>>]) -> Option<Shape> {
+/// points' mean speeds and the points never rewarded (left out of the standing rows);
+/// `None` when no point is scored.
+pub fn shape(
+    score: &[Vec<Option<f64>>],
+    speed: &[Vec<Option<f64>>],
+    unrewarded: &[(usize, usize)],
+) -> Option<Shape> {
     let mut peak: Option<((usize, usize), f64)> = None;
     for (i, row) in score.iter().enumerate() {
         for (j, v) in row.iter().enumerate() {
@@ -47,11 +58,14 @@ pub fn shape(score: &[Vec<Option<f64>>], speed: &[Vec<Option<f64>>]) -> Option<S
     let rows = score.len();
     let cols = score.iter().map(Vec::len).max().unwrap_or(0);
     let at = |i: usize, j: usize| score.get(i).and_then(|r| r.get(j)).copied().flatten();
-    let (mut rising, mut steps) = (0, 0);
+    let (mut rising, mut steps, mut largest) = (0, 0, 0.0f64);
+    // Each neighbouring pair is compared once: the point farther from the peak with the one
+    // nearer, which for the pairs beside the peak's row or column is the peak's.
     let mut compare = |near: Option<f64>, far: Option<f64>| {
         if let (Some(n), Some(f)) = (near, far) {
             steps += 1;
             rising += usize::from(n > f);
+            largest = largest.max((n - f).abs());
         }
     };
     for i in 0..rows {
@@ -67,11 +81,16 @@ pub fn shape(score: &[Vec<Option<f64>>], speed: &[Vec<Option<f64>>]) -> Option<S
             }
         }
     }
+    // A point never rewarded learned nothing, so its speed (often a fall at full tilt) says
+    // nothing of whether its row's weights teach standing.
     let standing_rows = (0..rows)
         .filter(|&i| {
             let r = speed.get(i).map(Vec::as_slice).unwrap_or(&[]);
-            cols > 0
-                && (0..cols).all(|j| {
+            let taught: Vec<usize> = (0..cols)
+                .filter(|&j| !unrewarded.contains(&(i, j)))
+                .collect();
+            !taught.is_empty()
+                && taught.iter().all(|&j| {
                     r.get(j)
                         .copied()
                         .flatten()
@@ -79,12 +98,20 @@ pub fn shape(score: &[Vec<Option<f64>>], speed: &[Vec<Option<f64>>]) -> Option<S
                 })
         })
         .collect();
+    let lowest = score
+        .iter()
+        .flatten()
+        .flatten()
+        .filter(|v| v.is_finite())
+        .fold(peak_mean, |m, &v| m.min(v));
+    let range = peak_mean - lowest;
     Some(Shape {
         peak: (pi, pj),
         peak_mean,
         interior: pi > 0 && pj > 0 && pi + 1 < rows && pj + 1 < cols,
         rising,
         steps,
+        largest_step: (steps > 0 && range > 0.0).then(|| largest / range),
         standing_rows,
     })
 }
@@ -108,13 +135,20 @@ mod tests {
             4,
             7,
         );
-        let s = shape(&hill, &grid(|_, _| Some(1.0), 4, 7)).unwrap();
+        let s = shape(&hill, &grid(|_, _| Some(1.0), 4, 7), &[]).unwrap();
         assert_eq!((s.peak, s.interior), ((2, 4), true));
         assert_eq!(s.rising, s.steps);
         // Every point but the peak's row and column has one step each way; 4 x 7 has
         // 3 x 7 steps along w1 and 4 x 6 along w2, all towards the peak.
         assert_eq!(s.steps, 3 * 7 + 4 * 6);
         assert!(s.standing_rows.is_empty());
+        // Range 0.4 + 0.8 = 1.2 (corner (0, 0) is lowest); the steepest step is at the w2
+        // edge, 0.05 x (16 - 9) = 0.35 (the w1 edge's is 0.1 x (4 - 1) = 0.3).
+        assert!((s.largest_step.unwrap() - 0.35 / 1.2).abs() < 1e-9, "{s:?}");
+        assert!(
+            s.largest_step.unwrap() < 0.5,
+            "a hill climbs in several steps"
+        );
     }
 
     #[test]
@@ -133,25 +167,51 @@ mod tests {
             4,
         );
         let speed = grid(|i, _| Some(if i == 0 { 0.05 } else { 0.9 }), 4, 4);
-        let s = shape(&cliff, &speed).unwrap();
+        let s = shape(&cliff, &speed, &[]).unwrap();
         assert_eq!((s.peak, s.interior), ((3, 3), false));
         assert_eq!(s.standing_rows, vec![0]);
         // The standing row is flat along w2: its 3 steps are ties, which do not rise.
         assert_eq!((s.rising, s.steps), (21, 24));
+        // From the standing row (-0.3) to the next (0.2 + 0.01 j), 0.53 at j = 3, of the
+        // range 0.93 (-0.3 to 0.63).
+        assert!(
+            (s.largest_step.unwrap() - 0.53 / 0.93).abs() < 1e-9,
+            "{s:?}"
+        );
         // A row with an unscored point is not called standing.
         let mut partial = speed.clone();
         partial[0][2] = None;
-        assert!(shape(&cliff, &partial).unwrap().standing_rows.is_empty());
+        assert!(shape(&cliff, &partial, &[])
+            .unwrap()
+            .standing_rows
+            .is_empty());
+        // A point never rewarded runs (falls) at 4 m/s: it is left out of its row, unless
+        // it is all the row has.
+        let mut flailing = speed.clone();
+        flailing[0][3] = Some(4.0);
+        assert!(shape(&cliff, &flailing, &[])
+            .unwrap()
+            .standing_rows
+            .is_empty());
+        assert_eq!(
+            shape(&cliff, &flailing, &[(0, 3)]).unwrap().standing_rows,
+            vec![0]
+        );
+        let whole_row: Vec<_> = (0..4).map(|j| (0, j)).collect();
+        assert!(shape(&cliff, &flailing, &whole_row)
+            .unwrap()
+            .standing_rows
+            .is_empty());
     }
 
     #[test]
     fn missing_points_are_skipped_and_an_empty_grid_has_no_shape() {
-        assert_eq!(shape(&grid(|_, _| None, 2, 2), &[]), None);
+        assert_eq!(shape(&grid(|_, _| None, 2, 2), &[], &[]), None);
         let holes = grid(|i, j| ((i + j) % 2 == 0).then_some((i + j) as f64), 3, 3);
-        let s = shape(&holes, &[]).unwrap();
+        let s = shape(&holes, &[], &[]).unwrap();
         assert_eq!(s.peak, (2, 2));
         // No two neighbours are both scored on a checkerboard.
-        assert_eq!(s.steps, 0);
+        assert_eq!((s.steps, s.largest_step), (0, None));
     }
 
     proptest! {
@@ -160,13 +220,16 @@ mod tests {
             v in proptest::collection::vec(proptest::option::of(-1.0f64..1.0), 12),
         ) {
             let g = grid(|i, j| v[i * 4 + j], 3, 4);
-            match shape(&g, &[]) {
+            match shape(&g, &[], &[]) {
                 None => prop_assert!(v.iter().all(Option::is_none)),
                 Some(s) => {
                     let best = v.iter().flatten().cloned().fold(f64::MIN, f64::max);
                     prop_assert_eq!(s.peak_mean, best);
                     prop_assert_eq!(g[s.peak.0][s.peak.1], Some(best));
                     prop_assert!(s.rising <= s.steps);
+                    if let Some(l) = s.largest_step {
+                        prop_assert!(l > 0.0 && l <= 1.0 + 1e-12, "{}", l);
+                    }
                 }
             }
         }

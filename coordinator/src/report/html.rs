@@ -2,6 +2,7 @@
 //! cells, in one self-contained page (no scripts, no external files).
 
 use super::plots::{fmt_w, COMPONENTS};
+use super::text::{dof_text, point_names};
 use super::{slug, GifStatus, ReportData};
 use crate::near_best::SpreadSource;
 use gaitsweep_model::{GaitScore, WALK_MAX_FALL_RATE, WALK_MAX_VEL_ERROR};
@@ -79,6 +80,14 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
             o,
             "<p>{} The same seed trains differently on two CPU models, so a result names the CPUs it was trained on.</p>",
             esc(&m)
+        );
+    }
+
+    if have(super::FINDINGS_FILE) {
+        let _ = writeln!(
+            o,
+            "<p>The paper's findings beside this sweep's, one column per terrain, as a Markdown table: <a href=\"{0}\">{0}</a>.</p>",
+            super::FINDINGS_FILE
         );
     }
 
@@ -361,7 +370,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
 fn shape_paragraph(o: &mut String, d: &ReportData, t: usize) {
     let score = d.grid_mean(t, |c| c.value());
     let speed = d.grid_mean(t, |c| c.score.as_ref().map(|s| s.mean_speed));
-    let Some(s) = crate::shape::shape(&score, &speed) else {
+    let Some(s) = crate::shape::shape(&score, &speed, &d.unrewarded_points(t)) else {
         return;
     };
     let standing: Vec<String> = s
@@ -371,13 +380,14 @@ fn shape_paragraph(o: &mut String, d: &ReportData, t: usize) {
         .collect();
     let _ = writeln!(
         o,
-        "<p>Shape of the grid: the best point is w1 {}, w2 {} (mean {:.3}), {}; the score rises towards it on <b>{} of {}</b> steps between neighbouring points; rows of w1 standing still at every w2 (mean speed &lt; {} m/s): {}.</p>",
+        "<p>Shape of the grid: the best point is w1 {}, w2 {} (mean {:.3}), {}; the score rises towards it on <b>{} of {}</b> steps between neighbouring points; the largest step between neighbours spans {} of the grid's range (near 1: a cliff); rows of w1 standing still at every w2 (mean speed &lt; {} m/s; points never rewarded left out): {}.</p>",
         fmt_w(d.w1_values[s.peak.0]),
         fmt_w(d.w2_values[s.peak.1]),
         s.peak_mean,
         if s.interior { "inside the grid" } else { "on the grid's edge" },
         s.rising,
         s.steps,
+        s.largest_step.map_or_else(|| "none".to_string(), |l| format!("{l:.2}")),
         crate::shape::STANDING_SPEED,
         if standing.is_empty() { "none".to_string() } else { standing.join(", ") },
     );
@@ -462,18 +472,6 @@ fn same_reward_paragraph(o: &mut String, d: &ReportData, t: usize) {
     );
 }
 
-/// Names of grid points, "(w1, w2)" each, comma-separated; "none" for no point.
-fn point_names(d: &ReportData, points: &[(usize, usize)]) -> String {
-    if points.is_empty() {
-        return "none".to_string();
-    }
-    points
-        .iter()
-        .map(|&(i, j)| format!("({}, {})", fmt_w(d.w1_values[i]), fmt_w(d.w2_values[j])))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
 /// The points of terrain `t` that its runs cannot tell apart from the best
 /// ([`ReportData::near_best`]): the grid's answer as a set, with the spread it rests on.
 fn near_best_paragraph(o: &mut String, d: &ReportData, t: usize) {
@@ -522,9 +520,4 @@ fn near_best_everywhere_paragraph(o: &mut String, d: &ReportData) {
         "<p>Points not told apart from the best on every terrain at once (95%, each terrain's spread of one run): <b>{}</b>.</p>",
         point_names(d, &crate::near_best::near_best_everywhere(&per_terrain)),
     );
-}
-
-/// "1 degree of freedom", "n degrees of freedom".
-fn dof_text(dof: usize) -> String {
-    format!("{dof} degree{} of freedom", if dof == 1 { "" } else { "s" })
 }

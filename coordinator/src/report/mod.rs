@@ -9,6 +9,8 @@
 //!   each cell's training ([`ReportCell::torque_share`]), where w2 shapes the reward;
 //! - `overlap.{png,svg}`: cells in the top quartile on every terrain (more than one terrain);
 //! - `curves_<terrain>.{png,svg}`: learning curves (mean reward per step and mean return);
+//! - `findings.md`: the paper's findings beside the sweep's, one column per terrain
+//!   (grid sweeps);
 //! - `gait.gif`: the promoted policy walking (`worker render`, run from the `worker` binary
 //!   next to this executable);
 //! - `index.html`: all of it with the table of cells, and per terrain the spread of one run
@@ -20,6 +22,7 @@
 //! function of a [`ReportData`], so it is tested on synthetic data.
 
 mod data;
+mod findings;
 mod html;
 mod load;
 pub mod machines;
@@ -50,6 +53,9 @@ pub const SHARE_METRICS: [&str; 2] = ["reward/torques", "reward/tracking_lin_vel
 /// runs' spread more than by w2.
 pub const NEGLIGIBLE_TORQUE_SHARE: f64 = 0.01;
 
+/// The paper's findings beside a grid sweep's, in Markdown ([`findings::markdown`]).
+pub const FINDINGS_FILE: &str = "findings.md";
+
 /// What happened to the gait GIF.
 #[derive(Debug, Clone, PartialEq)]
 pub enum GifStatus {
@@ -71,6 +77,11 @@ pub struct ReportFiles {
 pub fn write_report(data: &ReportData, out: &Path, gif: &GifStatus) -> Result<ReportFiles> {
     std::fs::create_dir_all(out).map_err(io(format!("create {}", out.display())))?;
     let mut files = plots::draw_all(data, out)?;
+    if let Some(md) = findings::markdown(data) {
+        let path = out.join(FINDINGS_FILE);
+        std::fs::write(&path, md).map_err(io(format!("write {}", path.display())))?;
+        files.push(path);
+    }
     let index = out.join("index.html");
     std::fs::write(&index, html::index(data, &files, gif))
         .map_err(io(format!("write {}", index.display())))?;

@@ -1,4 +1,7 @@
-//! A sweep's budget and evaluation in words, for the report.
+//! A sweep's budget and evaluation in words, and the names of grid points, for the report.
+
+use super::plots::fmt_w;
+use super::ReportData;
 
 /// The budget a sweep was given, in words: robots and epochs per cell, how the search spends
 /// them, where a cell never rewarded stops, replicates, the evaluation rollout and any PPO overrides.
@@ -66,4 +69,21 @@ pub fn eval_text(spec: &gaitsweep_core::ResolvedSpec) -> String {
                 "bounded (each step's displacement capped at its commanded distance)",
         }
     )
+}
+
+/// Names of grid points, "(w1, w2)" each, comma-separated; "none" for no point.
+pub(super) fn point_names(d: &ReportData, points: &[(usize, usize)]) -> String {
+    if points.is_empty() {
+        return "none".to_string();
+    }
+    points
+        .iter()
+        .map(|&(i, j)| format!("({}, {})", fmt_w(d.w1_values[i]), fmt_w(d.w2_values[j])))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// "1 degree of freedom", "n degrees of freedom".
+pub(super) fn dof_text(dof: usize) -> String {
+    format!("{dof} degree{} of freedom", if dof == 1 { "" } else { "s" })
 }

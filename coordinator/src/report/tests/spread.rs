@@ -345,4 +345,63 @@ fn points_near_the_best_are_read_with_the_spread_of_one_run() {
     assert!(page.contains(
         "on every terrain at once (95%, each terrain's spread of one run): <b>(12, -7.33), (12, -4.67)</b>"
     ));
+    assert!(page.contains("<a href=\"findings.md\">findings.md</a>"));
+
+    // The same figures in findings.md, beside the paper's, one column per terrain.
+    let dir = tempfile::tempdir().unwrap();
+    write_report(&d, dir.path(), &GifStatus::NotMade("--no-gif".into())).unwrap();
+    let md = std::fs::read_to_string(dir.path().join(FINDINGS_FILE)).unwrap();
+    let row = |label: &str| {
+        md.lines()
+            .find(|l| l.starts_with(&format!("| {label}")))
+            .unwrap_or_else(|| panic!("no row {label:?} in\n{md}"))
+            .to_string()
+    };
+    assert!(
+        md.contains("| | the paper (Kim et al. 2024) | flat | rough |\n|---|---|---|---|\n"),
+        "{md}"
+    );
+    // Flat: 12 first seeds (one running), 4 more seeds, a stopped one; rough: one failed,
+    // one NaN.
+    assert!(row("cells scored")
+        .ends_with("| 15 of 17 cells (12 grid points) | 10 of 12 cells (12 grid points) |"));
+    assert!(
+        row("best point").contains("| (12, -7.33): 0.188 over 3 runs |"),
+        "{md}"
+    );
+    assert!(row("where the best").ends_with("| on the grid's edge | on the grid's edge |"));
+    // Flat's means: rows 0.1 apart, columns -0.1125 / -0.0125 / -0.0125 / -0.1125, (2, -2)
+    // unscored. Along w1 all 7 steps rise; along w2 the 3 steps between the two equal
+    // columns do not, the other 5 do. Every step is 0.1, of the range 0.1875 + 0.1125.
+    assert!(row("steps between").contains("| 12 of 15 (80%) |"), "{md}");
+    assert!(
+        row("largest step")
+            .contains("| heavy robot: \"the form of a cliff rather than a raised peak\" | 0.33 |"),
+        "{md}"
+    );
+    // Only the rows of w1 < 12 stand (mean speed 0), and flat's w1 = 2 has a point unscored.
+    assert!(
+        row("rows of w1 standing").ends_with("| w1 = 7 | w1 = 2, w1 = 7 |"),
+        "{md}"
+    );
+    assert!(row("points not told apart").contains("| 2 of 11: (12, -7.33), (12, -4.67); one run's SD 0.010 (4 degrees of freedom, the finalists' seeds) |"), "{md}");
+    // The w1 = 12 cells track their commands; the extra seeds were scored without it.
+    assert!(
+        row("cells that walk").contains("\\|v_cmd - v\\| <= 0.25 m/s"),
+        "the bars are escaped"
+    );
+    assert!(
+        row("cells that walk")
+            .ends_with("| 4 of 15 (4 at every level) | 3 of 11 (3 at every level) |"),
+        "{md}"
+    );
+    assert!(row("points never rewarded").ends_with("| none | none |"));
+    assert!(md.contains("- points not told apart from the best on every terrain at once: (12, -7.33), (12, -4.67)\n"));
+    assert!(md.contains(
+        "- the weights for every terrain (max over grid points of the min over terrains"
+    ));
+    // An evolutionary search has no grid to hold against the paper.
+    let mut e = d.clone();
+    e.evolution = Some(([2.0, -10.0], [12.0, -2.0]));
+    assert_eq!(super::super::findings::markdown(&e), None);
 }

@@ -1,0 +1,254 @@
+//! `findings.md`: the paper's findings (Kim et al. 2024, Figs. 7-10) beside a grid sweep's,
+//! one column per terrain, in Markdown for BENCHMARKS.md and README (issue 39 item 5). Every
+//! figure is computed from the [`ReportData`] the rest of the report draws, so the write-up
+//! cites a command, not numbers copied by hand.
+
+use super::plots::fmt_w;
+use super::text::{dof_text, point_names};
+use super::ReportData;
+use crate::near_best::SpreadSource;
+use gaitsweep_model::{WALK_MAX_FALL_RATE, WALK_MAX_VEL_ERROR};
+use std::fmt::Write;
+
+/// What the paper says of each finding, quoted from its section on the results.
+mod paper {
+    pub const BEST: &str = "the red cell of Figs. 7-10";
+    pub const INTERIOR: &str = "ANYmal: \"located in the center of the grid\"";
+    pub const RISING: &str =
+        "ANYmal: \"the gait score tends to gradually increase towards this red area\"";
+    pub const CLIFF: &str = "heavy robot: \"the form of a cliff rather than a raised peak\"";
+    pub const STANDING: &str =
+        "heavy robot: \"when w1 = 2, the robot learned to stop in place in all cases\"";
+    pub const NEAR: &str = "not given (one run per cell, no spread)";
+    pub const WALKS: &str = "not measured";
+    pub const UNREWARDED: &str = "not reported";
+    pub const OVERLAP: &str = "\"there is an overlapping area in the two terrains\" \
+        (Figs. 8 and 10, ANYmal and the heavy robot), the weights picked there by eye";
+}
+
+/// The findings of a grid sweep as Markdown; `None` for an evolutionary search, whose
+/// candidates are not a grid.
+pub fn markdown(d: &ReportData) -> Option<String> {
+    if d.evolution.is_some() {
+        return None;
+    }
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "# The paper's findings beside sweep {} \"{}\" ({})\n",
+        d.sweep_id,
+        d.name.replace('"', "'"),
+        d.robot
+    );
+    let _ = writeln!(
+        o,
+        "Written by `coordinator report` from the sweep's database (state: {}). Budget: {}.\n",
+        d.state, d.budget
+    );
+    let mut header = "| | the paper (Kim et al. 2024) |".to_string();
+    let mut rule = "|---|---|".to_string();
+    for t in &d.terrains {
+        let _ = write!(header, " {} |", cell_text(t));
+        rule.push_str("---|");
+    }
+    let _ = writeln!(o, "{header}\n{rule}");
+    let columns: Vec<Column> = (0..d.terrains.len()).map(|t| column(d, t)).collect();
+    let standing = format!(
+        "rows of w1 standing still at every w2 (mean speed < {} m/s; points never rewarded left out)",
+        crate::shape::STANDING_SPEED
+    );
+    let walks = format!(
+        "cells that walk (falls <= {:.0}%, |v_cmd - v| <= {} m/s, mean over the levels)",
+        100.0 * WALK_MAX_FALL_RATE,
+        WALK_MAX_VEL_ERROR
+    );
+    let rows: [(&str, &str, Field); 9] = [
+        ("cells scored", "every cell, one run each", |c| &c.scored),
+        ("best point (w1, w2): mean score", paper::BEST, |c| &c.best),
+        ("where the best point lies", paper::INTERIOR, |c| &c.place),
+        (
+            "steps between neighbouring points where the score rises towards the best",
+            paper::RISING,
+            |c| &c.rising,
+        ),
+        (
+            "largest step between neighbouring points, as a share of the grid's range",
+            paper::CLIFF,
+            |c| &c.largest_step,
+        ),
+        (&standing, paper::STANDING, |c| &c.standing),
+        (
+            "points not told apart from the best at 95%",
+            paper::NEAR,
+            |c| &c.near,
+        ),
+        (&walks, paper::WALKS, |c| &c.walks),
+        (
+            "points never rewarded (mean reward per step 0 at every epoch)",
+            paper::UNREWARDED,
+            |c| &c.unrewarded,
+        ),
+    ];
+    for (label, said, value) in rows {
+        let _ = write!(o, "| {} | {} |", cell_text(label), cell_text(said));
+        for c in &columns {
+            let _ = write!(o, " {} |", cell_text(value(c)));
+        }
+        o.push('\n');
+    }
+    if d.terrains.len() > 1 {
+        across_terrains(&mut o, d);
+    }
+    Some(o)
+}
+
+/// Reads one figure of a [`Column`].
+type Field = fn(&Column) -> &str;
+
+/// One terrain's figures, each as the text of its table cell.
+struct Column {
+    scored: String,
+    best: String,
+    place: String,
+    rising: String,
+    largest_step: String,
+    standing: String,
+    near: String,
+    walks: String,
+    unrewarded: String,
+}
+
+fn column(d: &ReportData, t: usize) -> Column {
+    let cells = d.cells_of(t).count();
+    let scored: Vec<_> = d.cells_of(t).filter(|c| c.value().is_some()).collect();
+    let points = d.w1_values.len() * d.w2_values.len();
+    let score = d.grid_mean(t, |c| c.value());
+    let speed = d.grid_mean(t, |c| c.score.as_ref().map(|s| s.mean_speed));
+    let shape = crate::shape::shape(&score, &speed, &d.unrewarded_points(t));
+    let none = || "none scored".to_string();
+    let runs_at = |p: (usize, usize)| scored.iter().filter(|c| c.grid() == Some(p)).count();
+    let walking: Vec<_> = d.cells_of(t).filter_map(|c| c.score.as_ref()).collect();
+    Column {
+        scored: format!("{} of {cells} cells ({points} grid points)", scored.len()),
+        best: shape.as_ref().map_or_else(none, |s| {
+            let n = runs_at(s.peak);
+            format!(
+                "{}: {:.3} over {n} run{}",
+                point_names(d, &[s.peak]),
+                s.peak_mean,
+                if n == 1 { "" } else { "s" }
+            )
+        }),
+        place: shape.as_ref().map_or_else(none, |s| {
+            if s.interior {
+                "inside the grid".into()
+            } else {
+                "on the grid's edge".into()
+            }
+        }),
+        rising: shape.as_ref().map_or_else(none, |s| {
+            if s.steps == 0 {
+                "no neighbouring points scored".into()
+            } else {
+                format!(
+                    "{} of {} ({:.0}%)",
+                    s.rising,
+                    s.steps,
+                    100.0 * s.rising as f64 / s.steps as f64
+                )
+            }
+        }),
+        largest_step: shape
+            .as_ref()
+            .and_then(|s| s.largest_step)
+            .map_or_else(|| "no step measured".into(), |l| format!("{l:.2}")),
+        standing: shape.as_ref().map_or_else(none, |s| {
+            if s.standing_rows.is_empty() {
+                "none".into()
+            } else {
+                let rows: Vec<String> = s
+                    .standing_rows
+                    .iter()
+                    .map(|&i| format!("w1 = {}", fmt_w(d.w1_values[i])))
+                    .collect();
+                rows.join(", ")
+            }
+        }),
+        near: d.near_best(t).map_or_else(
+            || "not yet (no spread of one run measured)".into(),
+            |n| {
+                format!(
+                    "{} of {}: {}; one run's SD {:.3} ({}, {})",
+                    n.near.len(),
+                    n.scored,
+                    point_names(d, &n.near),
+                    n.sd,
+                    dof_text(n.dof),
+                    match n.source {
+                        SpreadSource::Replicates => "the finalists' seeds",
+                        SpreadSource::SameReward => "runs of nearly the same reward",
+                    }
+                )
+            },
+        ),
+        walks: format!(
+            "{} of {} ({} at every level)",
+            walking.iter().filter(|s| s.walks()).count(),
+            walking.len(),
+            walking.iter().filter(|s| s.walks_at_every_level()).count()
+        ),
+        unrewarded: point_names(d, &d.unrewarded_points(t)),
+    }
+}
+
+/// The paper's overlap of the terrains' peaks, read three ways: with each terrain's spread
+/// of one run, by top quartile, and by the rule that picks the weights for every terrain.
+fn across_terrains(o: &mut String, d: &ReportData) {
+    let _ = writeln!(o, "\nAcross terrains (the paper: {}):\n", paper::OVERLAP);
+    let per_terrain: Option<Vec<_>> = (0..d.terrains.len()).map(|t| d.near_best(t)).collect();
+    let near = per_terrain.map_or_else(
+        || "not yet (a terrain has no spread of one run)".into(),
+        |p| point_names(d, &crate::near_best::near_best_everywhere(&p)),
+    );
+    let _ = writeln!(
+        o,
+        "- points not told apart from the best on every terrain at once: {near}"
+    );
+    let _ = writeln!(
+        o,
+        "- points in the top quartile of every terrain: {}",
+        point_names(d, &d.overlap().0)
+    );
+    let rule = d.across().map_or_else(
+        || "not yet (no point scored on every terrain)".into(),
+        |a| {
+            format!(
+                "{}, its weakest terrain ({}) at {:.1}% of that terrain's best mean {}",
+                point_names(d, &[(a.w1_index as usize, a.w2_index as usize)]),
+                d.terrains.get(a.weakest).map_or("?", String::as_str),
+                100.0 * a.value,
+                a.interval_text()
+            )
+        },
+    );
+    let _ = writeln!(
+        o,
+        "- the weights for every terrain ({}): {rule}",
+        crate::across::RULE
+    );
+}
+
+/// Text safe inside a Markdown table cell.
+fn cell_text(s: &str) -> String {
+    s.replace('|', "\\|").replace('\n', " ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_cells_escape_their_bars() {
+        assert_eq!(cell_text("|v| a\nb"), "\\|v\\| a b");
+    }
+}
