@@ -35,7 +35,7 @@ cp "$SNAP/gaitsweep.sqlite" "$TMP/data/"
 "$BIN/coordinator" report --data-dir "$TMP/data" "$SWEEP" --out "$TMP/report" --no-gif
 OUT="docs/study/$ROBOT"
 mkdir -p "$OUT"
-rm -f "$OUT"/*.png
+rm -f "$OUT"/*.png "$OUT/findings.md"
 for f in "$TMP"/report/{score,surface,fall_rate,track,torque_share}_*.png "$TMP/report/overlap.png" "$TMP/report/findings.md"; do
   [ -e "$f" ] && cp "$f" "$OUT/"
 done

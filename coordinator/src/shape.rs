@@ -26,19 +26,29 @@ pub struct Shape {
     pub rising: usize,
     /// Such steps compared.
     pub steps: usize,
-    /// The largest score difference between two neighbouring scored points, as a share of
-    /// the grid's range (best point minus lowest): near 1 where one step spans the whole
-    /// range, a cliff; a raised peak climbs in several smaller steps. `None` without a
-    /// compared step or with every point equal.
-    pub largest_step: Option<f64>,
+    /// The largest score difference between two neighbouring points, both rewarded: where
+    /// one step spans most of the grid's range the surface is a cliff, where it takes
+    /// several it is a raised peak. `None` without such a step or with no difference.
+    pub largest_step: Option<Step>,
     /// Rows (w1 indices) whose every point is scored and stands still (mean speed under
     /// [`STANDING_SPEED`]), leaving out the points never rewarded (at least one must remain).
     pub standing_rows: Vec<usize>,
 }
 
+/// The largest step between two neighbouring points of a grid ([`Shape::largest_step`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Step {
+    /// Its score difference as a share of the range of the rewarded points' means (best
+    /// minus lowest).
+    pub share: f64,
+    /// The two points (w1 index, w2 index): the one farther from the peak, then the nearer.
+    pub points: [(usize, usize); 2],
+}
+
 /// The shape of a grid of point means `score[i][j]` (w1 index i, w2 index j) with the
-/// points' mean speeds and the points never rewarded (left out of the standing rows);
-/// `None` when no point is scored.
+/// points' mean speeds and the points never rewarded, which are left out of the standing
+/// rows and the largest step: a policy that learned nothing can run and fall at 4 m/s, and
+/// its score says nothing of what its weights teach. `None` when no point is scored.
 pub fn shape(
     score: &[Vec<Option<f64>>],
     speed: &[Vec<Option<f64>>],
@@ -57,15 +67,27 @@ pub fn shape(
     let ((pi, pj), peak_mean) = peak?;
     let rows = score.len();
     let cols = score.iter().map(Vec::len).max().unwrap_or(0);
-    let at = |i: usize, j: usize| score.get(i).and_then(|r| r.get(j)).copied().flatten();
-    let (mut rising, mut steps, mut largest) = (0, 0, 0.0f64);
+    let at = |(i, j): (usize, usize)| {
+        score
+            .get(i)
+            .and_then(|r| r.get(j))
+            .copied()
+            .flatten()
+            .filter(|v| v.is_finite())
+    };
+    let taught = |p: &(usize, usize)| !unrewarded.contains(p);
+    let (mut rising, mut steps) = (0, 0);
+    let mut largest: Option<(f64, [(usize, usize); 2])> = None;
     // Each neighbouring pair is compared once: the point farther from the peak with the one
-    // nearer, which for the pairs beside the peak's row or column is the peak's.
-    let mut compare = |near: Option<f64>, far: Option<f64>| {
-        if let (Some(n), Some(f)) = (near, far) {
+    // nearer, which for the pairs that cross the peak's row or column is in it.
+    let mut compare = |near: (usize, usize), far: (usize, usize)| {
+        if let (Some(n), Some(f)) = (at(near), at(far)) {
             steps += 1;
             rising += usize::from(n > f);
-            largest = largest.max((n - f).abs());
+            let d = (n - f).abs();
+            if taught(&near) && taught(&far) && largest.is_none_or(|l| d > l.0) {
+                largest = Some((d, [far, near]));
+            }
         }
     };
     for i in 0..rows {
@@ -73,11 +95,11 @@ pub fn shape(
             // Each point against its neighbour one step nearer the peak, along w1 and w2.
             if i != pi {
                 let near = if i < pi { i + 1 } else { i - 1 };
-                compare(at(near, j), at(i, j));
+                compare((near, j), (i, j));
             }
             if j != pj {
                 let near = if j < pj { j + 1 } else { j - 1 };
-                compare(at(i, near), at(i, j));
+                compare((i, near), (i, j));
             }
         }
     }
@@ -98,20 +120,25 @@ pub fn shape(
                 })
         })
         .collect();
-    let lowest = score
-        .iter()
-        .flatten()
-        .flatten()
-        .filter(|v| v.is_finite())
-        .fold(peak_mean, |m, &v| m.min(v));
-    let range = peak_mean - lowest;
+    let rewarded: Vec<f64> = (0..rows)
+        .flat_map(|i| (0..cols).map(move |j| (i, j)))
+        .filter(taught)
+        .filter_map(at)
+        .collect();
+    let range = rewarded.iter().copied().fold(f64::MIN, f64::max)
+        - rewarded.iter().copied().fold(f64::MAX, f64::min);
     Some(Shape {
         peak: (pi, pj),
         peak_mean,
         interior: pi > 0 && pj > 0 && pi + 1 < rows && pj + 1 < cols,
         rising,
         steps,
-        largest_step: (steps > 0 && range > 0.0).then(|| largest / range),
+        largest_step: largest
+            .filter(|l| l.0 > 0.0 && range > 0.0)
+            .map(|(d, points)| Step {
+                share: d / range,
+                points,
+            }),
         standing_rows,
     })
 }
@@ -144,11 +171,15 @@ mod tests {
         assert!(s.standing_rows.is_empty());
         // Range 0.4 + 0.8 = 1.2 (corner (0, 0) is lowest); the steepest step is at the w2
         // edge, 0.05 x (16 - 9) = 0.35 (the w1 edge's is 0.1 x (4 - 1) = 0.3).
-        assert!((s.largest_step.unwrap() - 0.35 / 1.2).abs() < 1e-9, "{s:?}");
-        assert!(
-            s.largest_step.unwrap() < 0.5,
-            "a hill climbs in several steps"
+        let step = s.largest_step.clone().unwrap();
+        assert!((step.share - 0.35 / 1.2).abs() < 1e-9, "{s:?}");
+        let [far, near] = step.points;
+        assert_eq!(
+            (far.0, far.1, near.1),
+            (near.0, 0, 1),
+            "a step from w2's edge"
         );
+        assert!(step.share < 0.5, "a hill climbs in several steps");
     }
 
     #[test]
@@ -174,9 +205,22 @@ mod tests {
         assert_eq!((s.rising, s.steps), (21, 24));
         // From the standing row (-0.3) to the next (0.2 + 0.01 j), 0.53 at j = 3, of the
         // range 0.93 (-0.3 to 0.63).
-        assert!(
-            (s.largest_step.unwrap() - 0.53 / 0.93).abs() < 1e-9,
-            "{s:?}"
+        let step = s.largest_step.clone().unwrap();
+        assert!((step.share - 0.53 / 0.93).abs() < 1e-9, "{s:?}");
+        assert_eq!(step.points, [(0, 3), (1, 3)]);
+        // With the standing row never rewarded, the steepest step is one row up (0.2 of
+        // the rewarded rows' range 0.2 to 0.63), and that row no longer stands.
+        let row0: Vec<_> = (0..4).map(|j| (0, j)).collect();
+        let taught = shape(&cliff, &speed, &row0).unwrap();
+        let step = taught.largest_step.clone().unwrap();
+        assert!((step.share - 0.2 / 0.43).abs() < 1e-9, "{step:?}");
+        let [far, near] = step.points;
+        assert_eq!((far.0 + 1, far.1), near, "a step along w1");
+        assert!(taught.standing_rows.is_empty());
+        assert_eq!(
+            (taught.rising, taught.steps),
+            (21, 24),
+            "rising counts every point"
         );
         // A row with an unscored point is not called standing.
         let mut partial = speed.clone();
@@ -212,6 +256,22 @@ mod tests {
         assert_eq!(s.peak, (2, 2));
         // No two neighbours are both scored on a checkerboard.
         assert_eq!((s.steps, s.largest_step), (0, None));
+        // Ties only, the range widened by a point with no neighbour: no step to speak of.
+        let ties = grid(
+            |i, j| match (i, j) {
+                (0, 0) | (0, 1) => Some(0.5),
+                (2, 3) => Some(-0.5),
+                _ => None,
+            },
+            3,
+            4,
+        );
+        let s = shape(&ties, &[], &[]).unwrap();
+        assert_eq!((s.steps, s.largest_step), (1, None));
+        // A NaN point is no point: not a step, not the peak.
+        let mut nan = ties.clone();
+        nan[1][0] = Some(f64::NAN);
+        assert_eq!(shape(&nan, &[], &[]).unwrap().steps, 1);
     }
 
     proptest! {
@@ -228,7 +288,7 @@ mod tests {
                     prop_assert_eq!(g[s.peak.0][s.peak.1], Some(best));
                     prop_assert!(s.rising <= s.steps);
                     if let Some(l) = s.largest_step {
-                        prop_assert!(l > 0.0 && l <= 1.0 + 1e-12, "{}", l);
+                        prop_assert!(l.share > 0.0 && l.share <= 1.0 + 1e-12, "{:?}", l);
                     }
                 }
             }

@@ -14,5 +14,7 @@ pub mod terrain;
 pub use cell_settings::{CellSettings, EvalSettings};
 pub use error::{Error, Result};
 pub use preset::{GridSpec, PpoConfig, PresetFile};
-pub use score::{GaitScore, LevelScore, ScoreVariant, WALK_MAX_FALL_RATE, WALK_MAX_VEL_ERROR};
+pub use score::{
+    GaitScore, LevelScore, ScoreVariant, WalkCount, WALK_MAX_FALL_RATE, WALK_MAX_VEL_ERROR,
+};
 pub use terrain::TerrainKind;

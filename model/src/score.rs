@@ -135,6 +135,31 @@ impl GaitScore {
     }
 }
 
+/// How many of some evaluations walk ([`WalkCount::of`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct WalkCount {
+    /// Evaluations with a finite score (a NaN score is a broken evaluation, not a gait).
+    pub scored: usize,
+    /// Of those, the ones that walk on the mean over their levels ([`GaitScore::walks`]).
+    pub walks: usize,
+    /// Of those, the ones that walk at every level ([`GaitScore::walks_at_every_level`]).
+    pub at_every_level: usize,
+}
+
+impl WalkCount {
+    /// Counts `scores`, leaving out those whose score is not finite, so that the count and
+    /// its denominator are over the same evaluations wherever a sweep's walking is told.
+    pub fn of<'a>(scores: impl IntoIterator<Item = &'a GaitScore>) -> Self {
+        let mut c = WalkCount::default();
+        for s in scores.into_iter().filter(|s| s.score.is_finite()) {
+            c.scored += 1;
+            c.walks += usize::from(s.walks());
+            c.at_every_level += usize::from(s.walks_at_every_level());
+        }
+        c
+    }
+}
+
 /// Prefix of an evaluation's metrics in a training run's metrics: `eval/<component>` for
 /// the score, `eval/level/<level>/<component>` for each level's.
 pub const EVAL_METRICS_PREFIX: &str = "eval/";
@@ -277,6 +302,19 @@ mod tests {
         // 5% falls on average, but 10.5% at level 7.
         let one = levels(at(0.0, 0.1), at(0.105, 0.2));
         assert!(one.walks() && !one.walks_at_every_level());
+        let broken = GaitScore {
+            score: f64::NAN,
+            ..both.clone()
+        };
+        assert_eq!(
+            WalkCount::of([&both, &one, &broken]),
+            WalkCount {
+                scored: 2,
+                walks: 2,
+                at_every_level: 1
+            },
+            "a NaN score is neither counted nor walking"
+        );
     }
 
     #[test]

@@ -131,15 +131,16 @@ pub(crate) fn render_show(s: &pb::Sweep, cells: &[pb::Cell]) -> String {
             .filter(|c| c.terrain_index as usize == ti)
             .filter_map(|c| c.score.as_ref().map(Into::into))
             .collect();
-        if !scores.is_empty() {
+        let walking = gaitsweep_model::WalkCount::of(&scores);
+        if walking.scored > 0 {
             let _ = writeln!(
                 o,
                 "cells that walk (falls <= {:.0}%, |v_cmd - v| <= {} m/s, mean over levels): {} of {} scored; at every level: {}",
                 100.0 * gaitsweep_model::WALK_MAX_FALL_RATE,
                 gaitsweep_model::WALK_MAX_VEL_ERROR,
-                scores.iter().filter(|s| s.walks()).count(),
-                scores.len(),
-                scores.iter().filter(|s| s.walks_at_every_level()).count()
+                walking.walks,
+                walking.scored,
+                walking.at_every_level
             );
         }
         let never: Vec<Vec<bool>> = grid

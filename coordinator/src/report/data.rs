@@ -225,10 +225,20 @@ impl ReportData {
             .collect()
     }
 
-    /// Cells `(w1_index, w2_index)` whose score is in the top quartile of their terrain's
-    /// scored cells on every terrain, and per grid position the number of terrains where
-    /// it is in the top quartile (none where a terrain has not scored it yet: a 0 there
-    /// would claim a comparison that has not been made).
+    /// The shape of terrain `t`'s grid ([`crate::shape`]) over its points' mean scores and
+    /// mean speeds, both from the cells with a finite score, with the points never rewarded
+    /// ([`ReportData::unrewarded_points`]) left out of the standing rows and the largest step.
+    pub fn shape(&self, t: usize) -> Option<crate::shape::Shape> {
+        let score = self.grid_mean(t, |c| c.value());
+        let speed = self.grid_mean(t, |c| c.value().and(c.score.as_ref()).map(|s| s.mean_speed));
+        crate::shape::shape(&score, &speed, &self.unrewarded_points(t))
+    }
+
+    /// Grid points `(w1_index, w2_index)` whose mean score is in the top quartile of their
+    /// terrain's point means on every terrain, and per grid position the number of terrains
+    /// where it is in the top quartile (none where a terrain has not scored it yet: a 0
+    /// there would claim a comparison that has not been made). Point means, so that a
+    /// point's extra seeds count once, as one terrain.
     pub fn overlap(&self) -> (Vec<(usize, usize)>, GridValues) {
         let mut count = vec![vec![Some(0.0); self.w2_values.len()]; self.w1_values.len()];
         for (i, row) in count.iter_mut().enumerate() {
@@ -243,17 +253,19 @@ impl ReportData {
             }
         }
         for t in 0..self.terrains.len() {
-            let mut v: Vec<f64> = self.cells_of(t).filter_map(|c| c.value()).collect();
+            let means = self.grid_mean(t, |c| c.value());
+            let mut v: Vec<f64> = means.iter().flatten().flatten().copied().collect();
             if v.is_empty() {
                 continue;
             }
             v.sort_by(|a, b| b.total_cmp(a));
             let threshold = v[v.len().div_ceil(4) - 1];
-            for c in self.cells_of(t) {
-                if c.value().is_some_and(|x| x >= threshold) {
-                    if let Some(Some(n)) = c.grid().and_then(|(i, j)| count.get_mut(i)?.get_mut(j))
-                    {
-                        *n += 1.0;
+            for (i, row) in means.iter().enumerate() {
+                for (j, m) in row.iter().enumerate() {
+                    if m.is_some_and(|x| x >= threshold) {
+                        if let Some(Some(n)) = count.get_mut(i).and_then(|r| r.get_mut(j)) {
+                            *n += 1.0;
+                        }
                     }
                 }
             }

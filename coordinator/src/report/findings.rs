@@ -7,10 +7,11 @@ use super::plots::fmt_w;
 use super::text::{dof_text, point_names};
 use super::ReportData;
 use crate::near_best::SpreadSource;
-use gaitsweep_model::{WALK_MAX_FALL_RATE, WALK_MAX_VEL_ERROR};
+use gaitsweep_model::{WalkCount, WALK_MAX_FALL_RATE, WALK_MAX_VEL_ERROR};
 use std::fmt::Write;
 
-/// What the paper says of each finding, quoted from its section on the results.
+/// What the paper says of each finding, quoted from its results (Section 5) and figure
+/// captions, or what it leaves out.
 mod paper {
     pub const BEST: &str = "the red cell of Figs. 7-10";
     pub const INTERIOR: &str = "ANYmal: \"located in the center of the grid\"";
@@ -22,8 +23,9 @@ mod paper {
     pub const NEAR: &str = "not given (one run per cell, no spread)";
     pub const WALKS: &str = "not measured";
     pub const UNREWARDED: &str = "not reported";
-    pub const OVERLAP: &str = "\"there is an overlapping area in the two terrains\" \
-        (Figs. 8 and 10, ANYmal and the heavy robot), the weights picked there by eye";
+    pub const OVERLAP: &str = "ANYmal: \"there is an overlapping area in the two terrains\" \
+        (Fig. 8); heavy robot: \"there are overlapping points in the peak values\" (Fig. 10); \
+        \"we can refer to the two gait score tables to select appropriate reward weight values\"";
 }
 
 /// The findings of a grid sweep as Markdown; `None` for an evolutionary search, whose
@@ -37,7 +39,7 @@ pub fn markdown(d: &ReportData) -> Option<String> {
         o,
         "# The paper's findings beside sweep {} \"{}\" ({})\n",
         d.sweep_id,
-        d.name.replace('"', "'"),
+        d.name.replace('"', "'").replace('\n', " "),
         d.robot
     );
     let _ = writeln!(
@@ -45,6 +47,10 @@ pub fn markdown(d: &ReportData) -> Option<String> {
         "Written by `coordinator report` from the sweep's database (state: {}). Budget: {}.\n",
         d.state, d.budget
     );
+    // The same seed trains differently on two CPU models: a figure names its machines.
+    if let Some(m) = super::machines::summary(&d.cells, false) {
+        let _ = writeln!(o, "{m}\n");
+    }
     let mut header = "| | the paper (Kim et al. 2024) |".to_string();
     let mut rule = "|---|---|".to_string();
     for t in &d.terrains {
@@ -72,7 +78,7 @@ pub fn markdown(d: &ReportData) -> Option<String> {
             |c| &c.rising,
         ),
         (
-            "largest step between neighbouring points, as a share of the grid's range",
+            "largest step between neighbouring points rewarded, as a share of the range of their means",
             paper::CLIFF,
             |c| &c.largest_step,
         ),
@@ -122,14 +128,21 @@ fn column(d: &ReportData, t: usize) -> Column {
     let cells = d.cells_of(t).count();
     let scored: Vec<_> = d.cells_of(t).filter(|c| c.value().is_some()).collect();
     let points = d.w1_values.len() * d.w2_values.len();
-    let score = d.grid_mean(t, |c| c.value());
-    let speed = d.grid_mean(t, |c| c.score.as_ref().map(|s| s.mean_speed));
-    let shape = crate::shape::shape(&score, &speed, &d.unrewarded_points(t));
+    let scored_points = d
+        .grid_mean(t, |c| c.value())
+        .iter()
+        .flatten()
+        .flatten()
+        .count();
+    let shape = d.shape(t);
     let none = || "none scored".to_string();
     let runs_at = |p: (usize, usize)| scored.iter().filter(|c| c.grid() == Some(p)).count();
-    let walking: Vec<_> = d.cells_of(t).filter_map(|c| c.score.as_ref()).collect();
+    let walking = WalkCount::of(d.cells_of(t).filter_map(|c| c.score.as_ref()));
     Column {
-        scored: format!("{} of {cells} cells ({points} grid points)", scored.len()),
+        scored: format!(
+            "{} of {cells} cells; {scored_points} of {points} grid points",
+            scored.len()
+        ),
         best: shape.as_ref().map_or_else(none, |s| {
             let n = runs_at(s.peak);
             format!(
@@ -160,8 +173,18 @@ fn column(d: &ReportData, t: usize) -> Column {
         }),
         largest_step: shape
             .as_ref()
-            .and_then(|s| s.largest_step)
-            .map_or_else(|| "no step measured".into(), |l| format!("{l:.2}")),
+            .and_then(|s| s.largest_step.as_ref())
+            .map_or_else(
+                || "no step measured".into(),
+                |l| {
+                    format!(
+                        "{:.2}, {} to {}",
+                        l.share,
+                        point_names(d, &[l.points[0]]),
+                        point_names(d, &[l.points[1]])
+                    )
+                },
+            ),
         standing: shape.as_ref().map_or_else(none, |s| {
             if s.standing_rows.is_empty() {
                 "none".into()
@@ -178,14 +201,18 @@ fn column(d: &ReportData, t: usize) -> Column {
             || "not yet (no spread of one run measured)".into(),
             |n| {
                 format!(
-                    "{} of {}: {}; one run's SD {:.3} ({}, {})",
+                    "{} of {} scored points: {}; one run's SD {:.3} ({}, {})",
                     n.near.len(),
                     n.scored,
                     point_names(d, &n.near),
                     n.sd,
                     dof_text(n.dof),
                     match n.source {
-                        SpreadSource::Replicates => "the finalists' seeds",
+                        SpreadSource::Replicates if d.finalists => {
+                            "the finalists' seeds drawn after the selection"
+                        }
+                        SpreadSource::Replicates =>
+                            "the seeds of the points trained more than once",
                         SpreadSource::SameReward => "runs of nearly the same reward",
                     }
                 )
@@ -193,9 +220,7 @@ fn column(d: &ReportData, t: usize) -> Column {
         ),
         walks: format!(
             "{} of {} ({} at every level)",
-            walking.iter().filter(|s| s.walks()).count(),
-            walking.len(),
-            walking.iter().filter(|s| s.walks_at_every_level()).count()
+            walking.walks, walking.scored, walking.at_every_level
         ),
         unrewarded: point_names(d, &d.unrewarded_points(t)),
     }
@@ -220,7 +245,7 @@ fn across_terrains(o: &mut String, d: &ReportData) {
         point_names(d, &d.overlap().0)
     );
     let rule = d.across().map_or_else(
-        || "not yet (no point scored on every terrain)".into(),
+        || "not yet (no point scored on every terrain with a positive best score)".into(),
         |a| {
             format!(
                 "{}, its weakest terrain ({}) at {:.1}% of that terrain's best mean {}",

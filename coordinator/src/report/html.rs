@@ -5,7 +5,7 @@ use super::plots::{fmt_w, COMPONENTS};
 use super::text::{dof_text, point_names};
 use super::{slug, GifStatus, ReportData};
 use crate::near_best::SpreadSource;
-use gaitsweep_model::{GaitScore, WALK_MAX_FALL_RATE, WALK_MAX_VEL_ERROR};
+use gaitsweep_model::{WalkCount, WALK_MAX_FALL_RATE, WALK_MAX_VEL_ERROR};
 use std::fmt::Write;
 use std::path::PathBuf;
 
@@ -75,7 +75,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         d.w2_values.iter().map(|v| fmt_w(*v)).collect::<Vec<_>>().join(", "),
         esc(&d.budget),
     );
-    if let Some(m) = super::machines::summary(&d.cells) {
+    if let Some(m) = super::machines::summary(&d.cells, true) {
         let _ = writeln!(
             o,
             "<p>{} The same seed trains differently on two CPU models, so a result names the CPUs it was trained on.</p>",
@@ -183,17 +183,17 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         let s = slug(terrain);
         let _ = writeln!(o, "<h2>Terrain: {}</h2>", esc(terrain));
         if let Some(t) = d.terrains.iter().position(|x| x == terrain) {
-            let scores: Vec<&GaitScore> = d.cells_of(t).filter_map(|c| c.score.as_ref()).collect();
-            if !scores.is_empty() {
+            let walking = WalkCount::of(d.cells_of(t).filter_map(|c| c.score.as_ref()));
+            if walking.scored > 0 {
                 let _ = writeln!(
                     o,
                     "<p>Cells that walk: <b>{}</b> of {} scored (fall rate &le; {:.0}% and |v_cmd &minus; v| &le; {} m/s, \
                      mean over the evaluation levels); at every level: <b>{}</b>.</p>",
-                    scores.iter().filter(|s| s.walks()).count(),
-                    scores.len(),
+                    walking.walks,
+                    walking.scored,
                     100.0 * WALK_MAX_FALL_RATE,
                     WALK_MAX_VEL_ERROR,
-                    scores.iter().filter(|s| s.walks_at_every_level()).count(),
+                    walking.at_every_level,
                 );
             }
             if d.evolution.is_none() {
@@ -368,9 +368,7 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
 /// The grid's shape on terrain `t` ([`crate::shape`]), what the paper's findings are
 /// read from: where the peak is, whether the score rises towards it, which w1 rows stand.
 fn shape_paragraph(o: &mut String, d: &ReportData, t: usize) {
-    let score = d.grid_mean(t, |c| c.value());
-    let speed = d.grid_mean(t, |c| c.score.as_ref().map(|s| s.mean_speed));
-    let Some(s) = crate::shape::shape(&score, &speed, &d.unrewarded_points(t)) else {
+    let Some(s) = d.shape(t) else {
         return;
     };
     let standing: Vec<String> = s
@@ -380,14 +378,23 @@ fn shape_paragraph(o: &mut String, d: &ReportData, t: usize) {
         .collect();
     let _ = writeln!(
         o,
-        "<p>Shape of the grid: the best point is w1 {}, w2 {} (mean {:.3}), {}; the score rises towards it on <b>{} of {}</b> steps between neighbouring points; the largest step between neighbours spans {} of the grid's range (near 1: a cliff); rows of w1 standing still at every w2 (mean speed &lt; {} m/s; points never rewarded left out): {}.</p>",
+        "<p>Shape of the grid: the best point is w1 {}, w2 {} (mean {:.3}), {}; the score rises towards it on <b>{} of {}</b> steps between neighbouring points; the largest step between neighbouring points rewarded{}; rows of w1 standing still at every w2 (mean speed &lt; {} m/s; points never rewarded left out): {}.</p>",
         fmt_w(d.w1_values[s.peak.0]),
         fmt_w(d.w2_values[s.peak.1]),
         s.peak_mean,
         if s.interior { "inside the grid" } else { "on the grid's edge" },
         s.rising,
         s.steps,
-        s.largest_step.map_or_else(|| "none".to_string(), |l| format!("{l:.2}")),
+        s.largest_step.as_ref().map_or_else(
+            || ": none".to_string(),
+            |l| format!(
+                ", from {} to {}, is {:.2} of the range of their means \
+                 (most of it: a cliff; a raised peak climbs in several steps)",
+                point_names(d, &[l.points[0]]),
+                point_names(d, &[l.points[1]]),
+                l.share,
+            )
+        ),
         crate::shape::STANDING_SPEED,
         if standing.is_empty() { "none".to_string() } else { standing.join(", ") },
     );

@@ -68,8 +68,9 @@ pub fn spans_text(spans: &[CpuSpan]) -> String {
 }
 
 /// The sweep's CPUs in one sentence: how many cells each trained (in full or in part) and
-/// how many cells more than one trained; `None` when no cell has trained.
-pub fn summary(cells: &[ReportCell]) -> Option<String> {
+/// how many cells more than one trained, pointing to the cell table for each CPU's epochs
+/// when `with_table`; `None` when no cell has trained.
+pub fn summary(cells: &[ReportCell], with_table: bool) -> Option<String> {
     let mut count: BTreeMap<&str, usize> = BTreeMap::new();
     let mut mixed = 0;
     for c in cells.iter().filter(|c| !c.trained_on.is_empty()) {
@@ -93,8 +94,13 @@ pub fn summary(cells: &[ReportCell]) -> Option<String> {
     let mut s = format!("Trained on {}.", list.join("; "));
     if mixed > 0 {
         s.push_str(&format!(
-            " {mixed} cell{} trained on more than one CPU (the table gives each CPU's epochs).",
-            if mixed == 1 { "" } else { "s" }
+            " {mixed} cell{} trained on more than one CPU{}.",
+            if mixed == 1 { "" } else { "s" },
+            if with_table {
+                " (the table gives each CPU's epochs)"
+            } else {
+                ""
+            }
         ));
     }
     Some(s)

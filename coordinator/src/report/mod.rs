@@ -7,7 +7,8 @@
 //! - `<component>_<terrain>.{png,svg}` for track, effort, tilt and progress;
 //! - `torque_share_<terrain>.{png,svg}`: the torque penalty against the tracking reward in
 //!   each cell's training ([`ReportCell::torque_share`]), where w2 shapes the reward;
-//! - `overlap.{png,svg}`: cells in the top quartile on every terrain (more than one terrain);
+//! - `overlap.{png,svg}`: grid points whose mean is in the top quartile on every terrain
+//!   (more than one terrain);
 //! - `curves_<terrain>.{png,svg}`: learning curves (mean reward per step and mean return);
 //! - `findings.md`: the paper's findings beside the sweep's, one column per terrain
 //!   (grid sweeps);
@@ -68,12 +69,12 @@ pub enum GifStatus {
 /// The files a report wrote.
 #[derive(Debug, Clone, Default)]
 pub struct ReportFiles {
-    /// Every picture, page and GIF written, in the output dir.
+    /// Every picture, page, Markdown file and GIF written, in the output dir.
     pub files: Vec<PathBuf>,
 }
 
-/// Draws every picture of `data` into `out` and writes `index.html` (with `gif` as the
-/// gait section).
+/// Draws every picture of `data` into `out`, writes `findings.md` for a grid and
+/// `index.html` (with `gif` as the gait section).
 pub fn write_report(data: &ReportData, out: &Path, gif: &GifStatus) -> Result<ReportFiles> {
     std::fs::create_dir_all(out).map_err(io(format!("create {}", out.display())))?;
     let mut files = plots::draw_all(data, out)?;

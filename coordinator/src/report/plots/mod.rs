@@ -383,7 +383,7 @@ pub fn draw_all(d: &ReportData, out: &Path) -> Result<Vec<PathBuf>> {
         let heat = Heatmap {
             title: format!("Overlap across terrains: {who}"),
             subtitle: format!(
-                "colour: on how many terrains ({}) a cell's score is in the top quartile; boxed: on all ({} cells)",
+                "colour: on how many terrains ({}) a point's mean score is in the top quartile; boxed: on all ({} points)",
                 d.terrains.join(", "),
                 cells.len()
             ),

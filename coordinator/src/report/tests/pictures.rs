@@ -55,15 +55,16 @@ fn every_picture_is_a_whole_png_and_svg() {
         "the worker binary was not found",
         "worker &lt;gone&gt;",
         "class=\"best\"",
-        // Flat: the w1 = 12 row (4 cells) walks, 11 scored; rough: 3 of that row (one failed).
+        // Flat: the w1 = 12 row (4 cells) walks, 11 scored; rough: 3 of that row (one
+        // failed), 10 scored (one NaN).
         "Cells that walk: <b>4</b> of 11 scored",
-        "Cells that walk: <b>3</b> of 11 scored",
+        "Cells that walk: <b>3</b> of 10 scored",
         // Flat: the score climbs with w1 to the last row, its peak at w2 -7.33 (a tie with
         // -4.67, which does not count as rising); w1 7 stands (mean speed 0), w1 2 has an
         // unscored point, w1 12 walks.
         "the best point is w1 12, w2 -7.33 (mean 0.188), on the grid's edge; the score rises towards it on <b>12 of 15</b> steps",
         // Every step between neighbours is 0.1, of the range 0.3.
-        "the largest step between neighbours spans 0.33 of the grid's range",
+        "the largest step between neighbouring points rewarded, from (2, -10) to (7, -10), is 0.33 of the range of their means",
         "(mean speed &lt; 0.2 m/s; points never rewarded left out): 7.</p>",
     ] {
         assert!(
