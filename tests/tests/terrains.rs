@@ -146,4 +146,18 @@ async fn a_two_terrain_sweep_scores_every_level_and_promotes_the_point_best_acro
         "report has no near-best line across terrains"
     );
     assert!(html.contains("rough at levels 0, 5") && html.contains("progress term: bounded"));
+    // findings.md holds the same sweep against the paper, one column per terrain, and its
+    // weights for every terrain are the promoted point.
+    let md = std::fs::read_to_string(report.join("findings.md")).unwrap();
+    assert!(
+        md.contains("| | the paper (Kim et al. 2024) | flat | rough |"),
+        "{md}"
+    );
+    let w2 = [-6, -3][want.w2_index as usize];
+    assert!(
+        md.contains(&format!(
+            "- the weights for every terrain (max over grid points of the min over terrains of (point mean / that terrain's best point mean)): ({w1}, {w2}), "
+        )),
+        "{md}"
+    );
 }
