@@ -27,6 +27,7 @@ mod findings;
 mod html;
 mod load;
 pub mod machines;
+mod paragraphs;
 mod plots;
 mod spread;
 pub mod tensorboard;
