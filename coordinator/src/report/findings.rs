@@ -135,6 +135,7 @@ fn column(d: &ReportData, t: usize) -> Column {
         .flatten()
         .count();
     let shape = d.shape(t);
+    let near = d.near_best(t);
     let none = || "none scored".to_string();
     let runs_at = |p: (usize, usize)| scored.iter().filter(|c| c.grid() == Some(p)).count();
     let walking = WalkCount::of(d.cells_of(t).filter_map(|c| c.score.as_ref()));
@@ -145,8 +146,17 @@ fn column(d: &ReportData, t: usize) -> Column {
         ),
         best: shape.as_ref().map_or_else(none, |s| {
             let n = runs_at(s.peak);
+            // The interval of the point's mean with one run's SD ([`ReportData::near_best`]),
+            // which pools more degrees of freedom than the point's own few seeds.
+            let interval = near.as_ref().map_or_else(String::new, |nb| {
+                format!(
+                    " \u{b1} {:.3} (95%, one run's SD {:.3})",
+                    gaitsweep_core::stats::t975(nb.dof) * nb.sd / (n.max(1) as f64).sqrt(),
+                    nb.sd
+                )
+            });
             format!(
-                "{}: {:.3} over {n} run{}",
+                "{}: {:.3}{interval} over {n} run{}",
                 point_names(d, &[s.peak]),
                 s.peak_mean,
                 if n == 1 { "" } else { "s" }
@@ -197,7 +207,7 @@ fn column(d: &ReportData, t: usize) -> Column {
                 rows.join(", ")
             }
         }),
-        near: d.near_best(t).map_or_else(
+        near: near.as_ref().map_or_else(
             || "not yet (no spread of one run measured)".into(),
             |n| {
                 format!(

@@ -373,7 +373,9 @@ fn points_near_the_best_are_read_with_the_spread_of_one_run() {
         "{md}"
     );
     assert!(
-        row("best point").contains("| (12, -7.33): 0.188 over 3 runs |"),
+        // t(0.975, 4 dof) 2.776 x 0.010 / sqrt 3 = 0.016.
+        row("best point")
+            .contains("| (12, -7.33): 0.188 \u{b1} 0.016 (95%, one run's SD 0.010) over 3 runs |"),
         "{md}"
     );
     assert!(row("where the best").ends_with("| on the grid's edge | on the grid's edge |"));
