@@ -271,7 +271,14 @@ mod tests {
         // A NaN point is no point: not a step, not the peak.
         let mut nan = ties.clone();
         nan[1][0] = Some(f64::NAN);
-        assert_eq!(shape(&nan, &[], &[]).unwrap().steps, 1);
+        let s = shape(&nan, &[], &[]).unwrap();
+        assert_eq!((s.steps, s.peak), (1, (0, 0)));
+        nan[0][0] = Some(f64::INFINITY);
+        assert_eq!(
+            shape(&nan, &[], &[]).unwrap().peak,
+            (0, 1),
+            "nor is an infinite one"
+        );
     }
 
     proptest! {

@@ -25,7 +25,8 @@ mod paper {
     pub const UNREWARDED: &str = "not reported";
     pub const OVERLAP: &str = "ANYmal: \"there is an overlapping area in the two terrains\" \
         (Fig. 8); heavy robot: \"there are overlapping points in the peak values\" (Fig. 10); \
-        \"we can refer to the two gait score tables to select appropriate reward weight values\"";
+        ANYmal (Section 5): \"we can refer to the two gait score tables to select appropriate reward \
+        weight values\"";
 }
 
 /// The findings of a grid sweep as Markdown; `None` for an evolutionary search, whose
@@ -144,24 +145,32 @@ fn column(d: &ReportData, t: usize) -> Column {
             "{} of {cells} cells; {scored_points} of {points} grid points",
             scored.len()
         ),
-        best: shape.as_ref().map_or_else(none, |s| {
-            let n = runs_at(s.peak);
-            // The interval of the point's mean with one run's SD ([`ReportData::near_best`]),
-            // which pools more degrees of freedom than the point's own few seeds.
-            let interval = near.as_ref().map_or_else(String::new, |nb| {
+        best: match (&near, &shape) {
+            // The interval of the best point's mean with one run's SD, which pools more
+            // degrees of freedom than the point's own few seeds; nominal, as for a point
+            // named in advance: the highest of many means reads high.
+            (Some(nb), _) => format!(
+                "{}: {:.3} \u{b1} {:.3} over {} run{} (nominal 95% for this point alone, one run's SD {:.3}; \
+                 the highest of {} points' means reads high)",
+                point_names(d, &[nb.best]),
+                nb.best_mean,
+                gaitsweep_core::stats::t975(nb.dof) * nb.sd / (nb.best_runs.max(1) as f64).sqrt(),
+                nb.best_runs,
+                if nb.best_runs == 1 { "" } else { "s" },
+                nb.sd,
+                nb.scored,
+            ),
+            (None, Some(s)) => {
+                let n = runs_at(s.peak);
                 format!(
-                    " \u{b1} {:.3} (95%, one run's SD {:.3})",
-                    gaitsweep_core::stats::t975(nb.dof) * nb.sd / (n.max(1) as f64).sqrt(),
-                    nb.sd
+                    "{}: {:.3} over {n} run{} (no spread of one run measured yet)",
+                    point_names(d, &[s.peak]),
+                    s.peak_mean,
+                    if n == 1 { "" } else { "s" }
                 )
-            });
-            format!(
-                "{}: {:.3}{interval} over {n} run{}",
-                point_names(d, &[s.peak]),
-                s.peak_mean,
-                if n == 1 { "" } else { "s" }
-            )
-        }),
+            }
+            (None, None) => none(),
+        },
         place: shape.as_ref().map_or_else(none, |s| {
             if s.interior {
                 "inside the grid".into()

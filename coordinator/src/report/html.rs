@@ -281,13 +281,13 @@ pub fn index(d: &ReportData, files: &[PathBuf], gif: &GifStatus) -> String {
         let (cells, _) = d.overlap();
         let _ = writeln!(
             o,
-            "<p>Cells (w1, w2) in the top quartile of scores on every terrain at once: {}.</p>",
+            "<p>Grid points (w1, w2) whose mean score is in the top quartile of their terrain's points on every terrain at once: {}.</p>",
             point_names(d, &cells)
         );
         fig(
             &mut o,
             "overlap",
-            "cells in the top quartile on every terrain (boxed)",
+            "grid points in the top quartile on every terrain (boxed)",
             "",
         );
     }

@@ -126,6 +126,9 @@ pub(super) fn near_best_paragraph(o: &mut String, d: &ReportData, t: usize) {
         return;
     };
     let source = match n.source {
+        SpreadSource::Replicates if d.finalists => {
+            "the finalists' seeds drawn after the selection (the first was picked for scoring high)"
+        }
         SpreadSource::Replicates => "the seeds of the points trained more than once",
         // Rows at the grid's edge can spread far more than those at its top (stairs in the
         // ANYmal study: SD 0.297 at w1 = 5.33, 0.034 at 8.67), so this SD may be wide there.

@@ -37,7 +37,7 @@ impl ReportData {
     /// every scored cell was never rewarded ([`ReportCell::never_rewarded`]), in grid order.
     pub fn unrewarded_points(&self, t: usize) -> Vec<(usize, usize)> {
         let mut points: BTreeMap<(usize, usize), bool> = BTreeMap::new();
-        for c in self.cells_of(t).filter(|c| c.score.is_some()) {
+        for c in self.cells_of(t).filter(|c| c.value().is_some()) {
             if let Some(p) = c.grid() {
                 *points.entry(p).or_insert(true) &= c.never_rewarded();
             }

@@ -63,7 +63,8 @@ fn every_picture_is_a_whole_png_and_svg() {
         // -4.67, which does not count as rising); w1 7 stands (mean speed 0), w1 2 has an
         // unscored point, w1 12 walks.
         "the best point is w1 12, w2 -7.33 (mean 0.188), on the grid's edge; the score rises towards it on <b>12 of 15</b> steps",
-        // Every step between neighbours is 0.1, of the range 0.3.
+        // Every step between neighbours is 0.1, of the range 0.3; of ties the first in grid
+        // order is named.
         "the largest step between neighbouring points rewarded, from (2, -10) to (7, -10), is 0.33 of the range of their means",
         "(mean speed &lt; 0.2 m/s; points never rewarded left out): 7.</p>",
     ] {

@@ -375,17 +375,18 @@ fn points_near_the_best_are_read_with_the_spread_of_one_run() {
     assert!(
         // t(0.975, 4 dof) 2.776 x 0.010 / sqrt 3 = 0.016.
         row("best point")
-            .contains("| (12, -7.33): 0.188 \u{b1} 0.016 (95%, one run's SD 0.010) over 3 runs |"),
+            .contains("| (12, -7.33): 0.188 \u{b1} 0.016 over 3 runs (nominal 95% for this point alone, one run's SD 0.010; the highest of 11 points' means reads high) |"),
         "{md}"
     );
     assert!(row("where the best").ends_with("| on the grid's edge | on the grid's edge |"));
     // Flat's means: rows 0.1 apart, columns -0.1125 / -0.0125 / -0.0125 / -0.1125, (2, -2)
     // unscored. Along w1 all 7 steps rise; along w2 the 3 steps between the two equal
-    // columns do not, the other 5 do. Every step is 0.1, of the range 0.1875 + 0.1125.
+    // columns do not, the other 5 do. Every step is 0.1, of the range 0.1875 + 0.1125:
+    // the largest named is the first of the ties in grid order (a later one must be larger).
     assert!(row("steps between").contains("| 12 of 15 (80%) |"), "{md}");
     assert!(
         row("largest step")
-            .contains("| heavy robot: \"the form of a cliff rather than a raised peak\" | 0.33, ("),
+            .ends_with("| heavy robot: \"the form of a cliff rather than a raised peak\" | 0.33, (2, -10) to (7, -10) | 0.33, (2, -7.33) to (7, -7.33) |"),
         "{md}"
     );
     // Only the rows of w1 < 12 stand (mean speed 0); flat's w1 = 2 has a point unscored,
