@@ -6,7 +6,7 @@
 use super::plots::fmt_w;
 use super::text::{dof_text, point_names};
 use super::ReportData;
-use crate::near_best::SpreadSource;
+use crate::near_best::{NearBest, SpreadSource};
 use gaitsweep_model::{WalkCount, WALK_MAX_FALL_RATE, WALK_MAX_VEL_ERROR};
 use std::fmt::Write;
 
@@ -59,7 +59,13 @@ pub fn markdown(d: &ReportData) -> Option<String> {
         rule.push_str("---|");
     }
     let _ = writeln!(o, "{header}\n{rule}");
-    let columns: Vec<Column> = (0..d.terrains.len()).map(|t| column(d, t)).collect();
+    // Each terrain's points near the best, read once for its column and for the overlap.
+    let near: Vec<Option<NearBest>> = (0..d.terrains.len()).map(|t| d.near_best(t)).collect();
+    let columns: Vec<Column> = near
+        .iter()
+        .enumerate()
+        .map(|(t, n)| column(d, t, n.as_ref()))
+        .collect();
     let standing = format!(
         "rows of w1 standing still at every w2 (mean speed < {} m/s; points never rewarded left out)",
         crate::shape::STANDING_SPEED
@@ -104,7 +110,7 @@ pub fn markdown(d: &ReportData) -> Option<String> {
         o.push('\n');
     }
     if d.terrains.len() > 1 {
-        across_terrains(&mut o, d);
+        across_terrains(&mut o, d, &near);
     }
     Some(o)
 }
@@ -125,7 +131,7 @@ struct Column {
     unrewarded: String,
 }
 
-fn column(d: &ReportData, t: usize) -> Column {
+fn column(d: &ReportData, t: usize, near: Option<&NearBest>) -> Column {
     let cells = d.cells_of(t).count();
     let scored: Vec<_> = d.cells_of(t).filter(|c| c.value().is_some()).collect();
     let points = d.w1_values.len() * d.w2_values.len();
@@ -136,7 +142,6 @@ fn column(d: &ReportData, t: usize) -> Column {
         .flatten()
         .count();
     let shape = d.shape(t);
-    let near = d.near_best(t);
     let none = || "none scored".to_string();
     let runs_at = |p: (usize, usize)| scored.iter().filter(|c| c.grid() == Some(p)).count();
     let walking = WalkCount::of(d.cells_of(t).filter_map(|c| c.score.as_ref()));
@@ -145,7 +150,7 @@ fn column(d: &ReportData, t: usize) -> Column {
             "{} of {cells} cells; {scored_points} of {points} grid points",
             scored.len()
         ),
-        best: match (&near, &shape) {
+        best: match (near, &shape) {
             // The interval of the best point's mean with one run's SD, which pools more
             // degrees of freedom than the point's own few seeds; nominal, as for a point
             // named in advance: the highest of many means reads high.
@@ -216,7 +221,7 @@ fn column(d: &ReportData, t: usize) -> Column {
                 rows.join(", ")
             }
         }),
-        near: near.as_ref().map_or_else(
+        near: near.map_or_else(
             || "not yet (no spread of one run measured)".into(),
             |n| {
                 format!(
@@ -247,9 +252,9 @@ fn column(d: &ReportData, t: usize) -> Column {
 
 /// The paper's overlap of the terrains' peaks, read three ways: with each terrain's spread
 /// of one run, by top quartile, and by the rule that picks the weights for every terrain.
-fn across_terrains(o: &mut String, d: &ReportData) {
+fn across_terrains(o: &mut String, d: &ReportData, near: &[Option<NearBest>]) {
     let _ = writeln!(o, "\nAcross terrains (the paper: {}):\n", paper::OVERLAP);
-    let per_terrain: Option<Vec<_>> = (0..d.terrains.len()).map(|t| d.near_best(t)).collect();
+    let per_terrain: Option<Vec<NearBest>> = near.iter().cloned().collect();
     let near = per_terrain.map_or_else(
         || "not yet (a terrain has no spread of one run)".into(),
         |p| point_names(d, &crate::near_best::near_best_everywhere(&p)),
