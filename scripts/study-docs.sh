@@ -5,7 +5,8 @@
 # tracking component, torque shares and the overlap across terrains to docs/study/ROBOT/
 # (replacing the pictures there) with findings.md (the paper's findings beside the sweep's),
 # and each terrain's
-# grid as JSON to tests/data/study-ROBOT-TERRAIN.json once every point of it is scored.
+# grid as JSON to tests/data/study-ROBOT-TERRAIN.json once every point of it is scored, with
+# the spec it was recorded with beside it (tests/data/study-ROBOT.toml).
 #
 #   scripts/study-docs.sh anymal
 #   scripts/study-docs.sh heavy
@@ -48,7 +49,9 @@ for t in $TERRAINS; do
   json="tests/data/study-$ROBOT-$t.json"
   if "$BIN/search-bench" export --data-dir "$TMP/data" --sweep "$SWEEP" --terrain "$t" > "$TMP/$t.json" 2> "$TMP/$t.err"; then
     mv "$TMP/$t.json" "$json"
-    echo "grid of $t: $json"
+    # The spec beside the grid (a test checks they agree).
+    cp "studies/$ROBOT.toml" "tests/data/study-$ROBOT.toml"
+    echo "grid of $t: $json (spec: tests/data/study-$ROBOT.toml)"
   else
     echo "grid of $t not exported yet: $(tail -1 "$TMP/$t.err")"
   fi

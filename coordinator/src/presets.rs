@@ -99,7 +99,22 @@ mod tests {
             assert_eq!((r.w1_values[0], r.w1_values[3]), (2.0, 12.0));
             assert_eq!((r.w2_values[0], *r.w2_values.last().unwrap()), (w2, -2.0));
             assert_eq!(r.eval.robots, 256, "issue 39: 256-robot evaluations");
-            assert_eq!(r.eval_levels_for("rough"), vec![0, 3, 5, 7]);
+            for terrain in ["rough", "stairs"] {
+                assert_eq!(r.eval_levels_for(terrain), vec![0, 3, 5, 7], "{path}");
+            }
+            // A spec cannot set commands: the preset's are Table 1's on every terrain.
+            let preset = PresetFile::load(robot).unwrap();
+            assert_eq!(
+                preset.commands.forward_speed,
+                [0.0, 2.0],
+                "Table 1: 0-2 m/s"
+            );
+            let [lo, hi] = preset.commands.heading;
+            assert!(
+                (lo + std::f32::consts::PI).abs() < 1e-4
+                    && (hi - std::f32::consts::PI).abs() < 1e-4,
+                "Table 1: headings in ±pi, got {lo}..{hi}"
+            );
             assert_eq!(
                 r.finalists,
                 Some(gaitsweep_core::finalists::Finalists { top: 4, seeds: 3 })

@@ -313,3 +313,72 @@ fn random_search_spends_its_share_and_finds_the_best_as_often_as_it_draws_it() {
     assert!((s.p_best - 1.0 / n as f64).abs() < 0.03, "{s:?}");
     assert!(replay_random(&rec, 0, 1).is_err() && replay_random(&rec, n + 1, 1).is_err());
 }
+
+/// The study recordings kept in `tests/data/` (`scripts/study-docs.sh`, issue 39) each sit
+/// beside the spec they were recorded with, and are that spec's full grid on one of its
+/// terrains: the spec is the study's (`studies/ROBOT.toml`), and the recording's axes,
+/// budget, terrain and sweep name are the ones that spec resolves to.
+#[test]
+fn the_kept_study_recordings_are_their_specs_grids() {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(&data).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let Some(stem) = name
+            .strip_prefix("study-")
+            .and_then(|n| n.strip_suffix(".json"))
+        else {
+            continue;
+        };
+        let (robot, terrain) = stem.rsplit_once('-').expect("study-ROBOT-TERRAIN.json");
+        let spec_path = data.join(format!("study-{robot}.toml"));
+        let spec_text = std::fs::read_to_string(&spec_path)
+            .unwrap_or_else(|e| panic!("{name} has no spec beside it ({spec_path:?}): {e}"));
+        let study = data.join(format!("../../studies/{robot}.toml"));
+        assert_eq!(
+            spec_text,
+            std::fs::read_to_string(&study).unwrap(),
+            "{spec_path:?} is not the study's spec {study:?}: run scripts/study-docs.sh {robot}"
+        );
+        let spec = gaitsweep_core::SweepSpec::from_toml(&spec_text).unwrap();
+        let r = crate::presets::resolve(&spec).unwrap();
+        let rec: Recording =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        rec.validate().unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(rec.terrain, terrain, "{name}");
+        assert!(
+            r.terrains.iter().any(|t| t.to_string() == terrain),
+            "{name}: {:?}",
+            r.terrains
+        );
+        assert_eq!(rec.epochs, r.epochs, "{name}");
+        let close = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9)
+        };
+        assert!(
+            close(&rec.w1_values, &r.w1_values),
+            "{name}: {:?}",
+            rec.w1_values
+        );
+        assert!(
+            close(&rec.w2_values, &r.w2_values),
+            "{name}: {:?}",
+            rec.w2_values
+        );
+        assert!(
+            rec.source.contains(&format!("\"{}\"", r.name)),
+            "{name}: {}",
+            rec.source
+        );
+        assert!(
+            rec.points
+                .iter()
+                .flat_map(|p| &p.runs)
+                .all(|run| run.score.is_finite()),
+            "{name}: a run without a finite score"
+        );
+        seen += 1;
+    }
+    assert!(seen >= 1, "no study recording in {data:?}");
+}

@@ -440,10 +440,21 @@ mod tests {
             let mut long = p.ppo.clone();
             short.resolve_schedule(600).unwrap();
             long.resolve_schedule(3000).unwrap();
+            // The shipped recipes anneal: a preset without one would pass the scaling below
+            // as 0 == 0 and say nothing about its schedule.
+            assert!(
+                short.noise_decay_start > 0 && short.noise_decay_epochs > 0,
+                "{robot}: the shipped recipe anneals its action std ({short:?})"
+            );
             assert_eq!(
                 long.noise_decay_start,
                 5 * short.noise_decay_start,
                 "{robot}"
+            );
+            assert_eq!(
+                long.noise_decay_epochs,
+                5 * short.noise_decay_epochs,
+                "{robot}: the anneal's end scales with the budget too"
             );
         }
     }
