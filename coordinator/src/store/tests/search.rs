@@ -137,6 +137,92 @@ pub(super) async fn finalists_get_more_seeds_and_the_best_mean_is_promoted() {
     assert_eq!(on_flat.cell.id, best.cell.id);
 }
 
+/// How both study specs run: a grid over two terrains with a finalist stage. Each terrain's
+/// finalists are its own top points; when the sweep ends the finalists are promoted per
+/// terrain and overall, and the point best across the terrains (`'*'`) is ranked by the
+/// means over every seed, the finalists' further seeds included.
+pub(super) async fn finalists_on_two_terrains_feed_the_promotion_across_them() {
+    let (_d, store, w) = setup().await;
+    let mut s = spec(2, 2, vec![TerrainKind::Flat, TerrainKind::Rough]);
+    s.finalists = Some(gaitsweep_core::finalists::Finalists { top: 2, seeds: 3 });
+    let sweep = store.create_sweep(&s, 0).await.unwrap();
+    assert_eq!(
+        sweep.cells_total, 8,
+        "the first pass is one seed per point and terrain"
+    );
+    // Flat: (0,0) 0.9 then 0.3, 0.3 (mean 0.5); (0,1) 0.8 then 0.7, 0.6 (mean 0.7).
+    // Rough: (1,0) 0.6 x 3 (mean 0.6); (0,0) 0.5 then 0.2, 0.2 (mean 0.3); (0,1) 0.4 once.
+    let value = |c: &CellRecord| {
+        let (i, j) = c.place.pair();
+        match (c.terrain_index, i, j, c.replicate) {
+            (0, 0, 0, 0) => 0.9,
+            (0, 0, 0, _) => 0.3,
+            (0, 0, 1, 0) => 0.8,
+            (0, 0, 1, 1) => 0.7,
+            (0, 0, 1, _) => 0.6,
+            (0, 1, 0, _) => 0.1,
+            (0, 1, 1, _) => 0.2,
+            (1, 0, 0, 0) => 0.5,
+            (1, 0, 0, _) => 0.2,
+            (1, 0, 1, _) => 0.4,
+            (1, 1, 0, _) => 0.6,
+            _ => 0.1,
+        }
+    };
+    let mut finished = None;
+    while let Some(g) = store.lease_next(&w, 0, 1).await.unwrap() {
+        let out = store
+            .report_result(g.lease, &score(value(&g.cell)), 3, None, 1)
+            .await
+            .unwrap();
+        finished = finished.or(out.finished);
+    }
+    assert_eq!(finished.unwrap().state, SweepState::Done);
+    let cells = store.cells(sweep.id).await.unwrap();
+    let mut further: Vec<(u32, u32, u32)> = cells
+        .iter()
+        .filter(|c| c.replicate > 0)
+        .map(|c| (c.terrain_index, c.place.pair().0, c.place.pair().1))
+        .collect();
+    further.sort();
+    further.dedup();
+    assert_eq!(
+        further,
+        vec![(0, 0, 0), (0, 0, 1), (1, 0, 0), (1, 1, 0)],
+        "each terrain's own top 2 points get more seeds"
+    );
+    assert_eq!(cells.len(), 16);
+    let promoted = |terrain: &'static str| {
+        let (store, cells) = (&store, &cells);
+        async move {
+            let (cell, score): (i64, f64) = sqlx::query_as(
+                "SELECT cell_id, score FROM promotions WHERE sweep_id = $1 AND terrain = $2 ORDER BY id DESC LIMIT 1",
+            )
+            .bind(sweep.id.0)
+            .bind(terrain)
+            .fetch_one(store.reader())
+            .await
+            .unwrap();
+            let c = cells.iter().find(|c| c.id.0 == cell).unwrap().clone();
+            (c.terrain_index, c.place.pair(), score)
+        }
+    };
+    let (t, p, mean) = promoted("flat").await;
+    assert_eq!((t, p), (0, (0, 1)), "flat's best mean, not its lucky 0.9");
+    assert!((mean - 0.7).abs() < 1e-9);
+    let (t, p, mean) = promoted("rough").await;
+    assert_eq!((t, p), (1, (1, 0)));
+    assert!((mean - 0.6).abs() < 1e-9);
+    let (_, p, _) = promoted("").await;
+    assert_eq!(p, (0, 1), "the highest finalist mean over both terrains");
+    // Over point means with every seed: (0,1) is flat's best and 0.4 / 0.6 of rough's, the
+    // highest minimum; over first seeds only, (0,0) would be (min(0.9/0.9, 0.5/0.6) = 0.83).
+    let (t, p, value) = promoted("*").await;
+    assert_eq!(p, (0, 1), "the rule over the finalists' means");
+    assert_eq!(t, 1, "the row names its cell on the weakest terrain");
+    assert!((value - 0.4 / 0.6).abs() < 1e-9, "{value}");
+}
+
 pub(super) async fn successive_halving_continues_the_top_third_and_stops_the_rest() {
     let (_d, store, w) = setup().await;
     let mut s = spec(6, 1, vec![TerrainKind::Flat]);
