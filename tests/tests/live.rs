@@ -14,46 +14,13 @@ use std::time::Duration;
 
 const TOKEN: &str = "live-s3cret";
 
-fn chromium() -> Option<String> {
-    ["chromium", "chromium-browser", "google-chrome"]
-        .into_iter()
-        .find(|b| {
-            Command::new(b)
-                .arg("--version")
-                .output()
-                .is_ok_and(|o| o.status.success())
-        })
-        .map(str::to_string)
-}
-
-/// Runs headless Chromium on `url` with `extra` flags; its stdout.
-fn browse(browser: &str, url: &str, extra: &[&str]) -> String {
-    let out = Command::new(browser)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--hide-scrollbars",
-            "--window-size=1400,1000",
-            "--virtual-time-budget=1500",
-        ])
-        .args(extra)
-        .arg(url)
-        .output()
-        .expect("run chromium");
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
 fn status_of(addr: &str, path: &str) -> String {
     http_get(addr, path, None).0
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_live_page_shows_a_finished_sweep_and_refuses_a_missing_token() {
-    let browser = chromium().expect(
-        "headless chromium is needed for this test: scripts/test.sh installs Debian's `chromium` \
-         (apt-get install chromium)",
-    );
+    let browser = chromium_or_panic();
     let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
     let coord = Coord::start(

@@ -168,6 +168,35 @@ async fn two_workers_finish_a_2x2_sweep() {
         .map(|d| d.count())
         .unwrap_or(0);
     assert!(exported > 0, "fetch-best --export wrote the exported actor");
+    // The exported actor is the robot's (anymal on flat ground: legged_gym's 48 observations,
+    // 12 joint actions): onnxruntime and torch run it on the same observations and agree
+    // within 1e-5 (trainer/tests/checkpoint.rs compares both with the Rust policy).
+    let script = "import sys, numpy as np, onnxruntime as ort, torch\n\
+                  s = ort.InferenceSession(sys.argv[1], providers=['CPUExecutionProvider'])\n\
+                  dim = s.get_inputs()[0].shape[1]\n\
+                  obs = (np.random.default_rng(1).normal(size=(16, dim)) * 3).astype(np.float32)\n\
+                  a = s.run(['actions'], {'obs': obs})[0]\n\
+                  t = torch.jit.load(sys.argv[2])(torch.from_numpy(obs)).detach().numpy()\n\
+                  print(dim, a.shape[0], a.shape[1], float(np.abs(a - t).max()))\n";
+    let export = tmp.path().join("export");
+    let out = std::process::Command::new(python())
+        .args(["-c", script])
+        .arg(export.join("policy.onnx"))
+        .arg(export.join("policy.pt"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "onnxruntime or torch failed on the exported actor: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    let got: Vec<f64> = text
+        .split_whitespace()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert_eq!(&got[..3], &[48.0, 16.0, 12.0], "{text}");
+    assert!(got[3] <= 1e-5, "onnxruntime and torch differ by {}", got[3]);
 
     // every metric of every cell as one TensorBoard log dir, read back by TensorBoard
     let tb = tmp.path().join("tb");

@@ -1,7 +1,8 @@
 //! A sweep over two terrains on real processes (issue 39): cells off flat ground are scored
 //! at every evaluation level, each level's score is stored, and when the sweep ends the grid
 //! point best across the terrains is promoted (`promotions.terrain = '*'`) by the rule of
-//! `coordinator/src/across.rs`, shown by `coordinator show` and the report.
+//! `coordinator/src/across.rs`, shown by `coordinator show`, the report and the live page
+//! (its JSON and the page rendered in headless Chromium).
 
 mod common;
 
@@ -14,9 +15,10 @@ const SWEEP_TIMEOUT: Duration = Duration::from_secs(600);
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_two_terrain_sweep_scores_every_level_and_promotes_the_point_best_across_terrains() {
+    let browser = chromium_or_panic();
     let _g = heavy().await;
     let tmp = tempfile::tempdir().unwrap();
-    let coord = Coord::start(tmp.path(), "127.0.0.1:0", &[]).await;
+    let coord = Coord::start(tmp.path(), "127.0.0.1:0", &["--http", "127.0.0.1:0"]).await;
     let mut c = coord.sweeps().await;
     // Forward commands in [0, 1] m/s (bench/learning-proof): a robot standing still earns
     // enough tracking credit for its score to be positive before it learned anything, and
@@ -118,6 +120,56 @@ async fn a_two_terrain_sweep_scores_every_level_and_promotes_the_point_best_acro
     assert!(
         text.contains("by level (score / fall rate): level 0"),
         "{text}"
+    );
+
+    // The live page: the same point across terrains, and every level of each cell.
+    let http = std::fs::read_to_string(coord.data.join("http.addr")).unwrap();
+    let (status, body) = http_get(&http, &format!("/api/sweeps/{}", sweep.sweep_id), None);
+    assert!(status.contains("200"), "{status}");
+    let live: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    let across_json = &live["across"];
+    assert_eq!(across_json["w1"].as_f64(), Some(w1), "{across_json}");
+    assert_eq!(
+        across_json["w2"].as_f64(),
+        Some([-6.0, -3.0][want.w2_index as usize]),
+        "{across_json}"
+    );
+    assert!((across_json["value"].as_f64().unwrap() - want.value).abs() < 1e-12);
+    let cells_json = live["cells"].as_array().unwrap();
+    assert_eq!(cells_json.len(), 8);
+    for c in cells_json {
+        let levels: Vec<i64> = c["levels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|l| l["level"].as_i64().unwrap())
+            .collect();
+        let want_levels = if c["terrain_index"] == 1 {
+            vec![0, 5]
+        } else {
+            vec![0]
+        };
+        assert_eq!(levels, want_levels, "{c}");
+    }
+    let dom = browse(&browser, &format!("http://{http}/"), &["--dump-dom"]);
+    assert!(
+        dom.contains("data-loaded=\"1\""),
+        "page did not load: {dom}"
+    );
+    let across_p = dom
+        .split("id=\"across\">")
+        .nth(1)
+        .and_then(|rest| rest.split("</p>").next())
+        .unwrap_or_else(|| panic!("no weights for every terrain on the page: {dom}"));
+    let w2_value = [-6.0, -3.0][want.w2_index as usize];
+    assert!(
+        across_p.starts_with("Weights for every terrain")
+            && across_p.contains(&format!("<b>w1 {w1:.2}, w2 {w2_value:.2}</b>")),
+        "{across_p}"
+    );
+    assert!(
+        dom.contains("id=\"celllevels\""),
+        "no per-level scores on the page: {dom}"
     );
 
     let report = tmp.path().join("report");

@@ -69,9 +69,11 @@ impl ReportCell {
     /// How much the torque penalty weighs against velocity tracking in the cell's training:
     /// the mean over its logged epochs of the torque penalty per step (its magnitude) over
     /// the mean tracking reward per step. The paper contrasts these two terms (w2 against
-    /// w1); this says where on the grid the contrast exists. `None` without both metrics or
-    /// without a positive tracking reward.
+    /// w1); this says where on the grid the contrast exists. `None` before the cell is
+    /// scored (a cell still training has a share of its epochs so far, which would drift on
+    /// the picture unmarked), without both metrics, or without a positive tracking reward.
     pub fn torque_share(&self) -> Option<f64> {
+        self.score.as_ref()?;
         let mean = |name: &str| {
             let c = self.curves.get(name).filter(|c| !c.is_empty())?;
             Some(c.iter().map(|p| p.1).sum::<f64>() / c.len() as f64)

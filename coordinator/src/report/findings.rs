@@ -23,6 +23,7 @@ mod paper {
     pub const NEAR: &str = "not given (one run per cell, no spread)";
     pub const WALKS: &str = "not measured";
     pub const UNREWARDED: &str = "not reported";
+    pub const GAIT: &str = "not reported (Eq. 4's score only)";
     pub const OVERLAP: &str = "ANYmal: \"there is an overlapping area in the two terrains\" \
         (Fig. 8); heavy robot: \"there are overlapping points in the peak values\" (Fig. 10); \
         ANYmal (Section 5): \"we can refer to the two gait score tables to select appropriate reward \
@@ -75,9 +76,14 @@ pub fn markdown(d: &ReportData) -> Option<String> {
         100.0 * WALK_MAX_FALL_RATE,
         WALK_MAX_VEL_ERROR
     );
-    let rows: [(&str, &str, Field); 9] = [
+    let rows: [(&str, &str, Field); 10] = [
         ("cells scored", "every cell, one run each", |c| &c.scored),
         ("best point (w1, w2): mean score", paper::BEST, |c| &c.best),
+        (
+            "the best point's gait: does Eq. 4's top point fall or overspeed?",
+            paper::GAIT,
+            |c| &c.best_gait,
+        ),
         ("where the best point lies", paper::INTERIOR, |c| &c.place),
         (
             "steps between neighbouring points where the score rises towards the best",
@@ -122,6 +128,7 @@ type Field = fn(&Column) -> &str;
 struct Column {
     scored: String,
     best: String,
+    best_gait: String,
     place: String,
     rising: String,
     largest_step: String,
@@ -145,7 +152,9 @@ fn column(d: &ReportData, t: usize, near: Option<&NearBest>) -> Column {
     let none = || "none scored".to_string();
     let runs_at = |p: (usize, usize)| scored.iter().filter(|c| c.grid() == Some(p)).count();
     let walking = WalkCount::of(d.cells_of(t).filter_map(|c| c.score.as_ref()));
+    let best_point = near.map(|n| n.best).or(shape.as_ref().map(|s| s.peak));
     Column {
+        best_gait: best_point.map_or_else(none, |p| gait_at(&scored, p)),
         scored: format!(
             "{} of {cells} cells; {scored_points} of {points} grid points",
             scored.len()
@@ -248,6 +257,31 @@ fn column(d: &ReportData, t: usize, near: Option<&NearBest>) -> Column {
         ),
         unrewarded: point_names(d, &d.unrewarded_points(t)),
     }
+}
+
+/// How the runs of grid point `p` among `scored` (cells with a finite score) walk: their
+/// mean fall rate, velocity error, speed and overspeed (each already a mean over the levels).
+fn gait_at(scored: &[&super::ReportCell], p: (usize, usize)) -> String {
+    let runs: Vec<_> = scored
+        .iter()
+        .filter(|c| c.grid() == Some(p))
+        .filter_map(|c| c.score.as_ref())
+        .collect();
+    if runs.is_empty() {
+        return "none scored".into();
+    }
+    let mean = |f: fn(&gaitsweep_model::GaitScore) -> f64| {
+        runs.iter().map(|s| f(s)).sum::<f64>() / runs.len() as f64
+    };
+    format!(
+        "falls {:.1}%, |v_cmd - v| {:.3} m/s, mean speed {:.3} m/s, overspeed {:.3} m/s (mean over {} run{} and the levels)",
+        100.0 * mean(|s| s.fall_rate),
+        mean(|s| s.mean_vel_error),
+        mean(|s| s.mean_speed),
+        mean(|s| s.overspeed),
+        runs.len(),
+        if runs.len() == 1 { "" } else { "s" },
+    )
 }
 
 /// The paper's overlap of the terrains' peaks, read three ways: with each terrain's spread

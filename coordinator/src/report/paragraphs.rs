@@ -72,7 +72,7 @@ pub(super) fn torque_share_paragraph(o: &mut String, d: &ReportData, t: usize) {
     let names: Vec<String> = cols.iter().map(|&j| fmt_w(d.w2_values[j])).collect();
     let _ = writeln!(
         o,
-        "<p>Torque penalty under {:.0}% of the tracking reward (mean over training, every cell): w2 = {}. \
+        "<p>Torque penalty under {:.0}% of the tracking reward (mean over training, every scored cell): w2 = {}. \
          There the weights give nearly the same reward whatever w2, so cells of one row differ by their runs' spread \
          more than by w2.</p>",
         100.0 * super::NEGLIGIBLE_TORQUE_SHARE,

@@ -347,6 +347,46 @@ pub fn python() -> PathBuf {
     py
 }
 
+/// A headless browser on this machine: Debian's `chromium` (scripts/test.sh installs it), or
+/// another Chromium by its usual names.
+pub fn chromium() -> Option<String> {
+    ["chromium", "chromium-browser", "google-chrome"]
+        .into_iter()
+        .find(|b| {
+            Command::new(b)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+        .map(str::to_string)
+}
+
+/// Runs headless Chromium on `url` with `extra` flags; its stdout.
+pub fn browse(browser: &str, url: &str, extra: &[&str]) -> String {
+    let out = Command::new(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--hide-scrollbars",
+            "--window-size=1400,1000",
+            "--virtual-time-budget=1500",
+        ])
+        .args(extra)
+        .arg(url)
+        .output()
+        .expect("run chromium");
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// [`chromium`], or a panic that says how to install it.
+pub fn chromium_or_panic() -> String {
+    chromium().expect(
+        "headless chromium is needed for this test: scripts/test.sh installs Debian's `chromium` \
+         (apt-get install chromium)",
+    )
+}
+
 /// A plain GET (with `Authorization: Bearer` when `token` is given): the status line and
 /// the body.
 pub fn http_get(addr: &str, path: &str, token: Option<&str>) -> (String, Vec<u8>) {

@@ -146,6 +146,11 @@ fn the_torque_share_says_where_w2_shapes_the_reward() {
         .curves
         .insert("reward/tracking_lin_vel".into(), vec![(1, 0.0)]);
     assert_eq!(d.cells[k].torque_share(), None);
+    // A cell still training has no share yet, though its metrics give one.
+    let k = cell_at(&d, 0, (1, 3));
+    let scored = d.cells[k].score.take();
+    assert_eq!(d.cells[k].torque_share(), None);
+    d.cells[k].score = scored;
 
     let dir = tempfile::tempdir().unwrap();
     let gif = GifStatus::NotMade("--no-gif".into());
@@ -166,8 +171,10 @@ fn the_torque_share_says_where_w2_shapes_the_reward() {
     );
     let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
     assert!(html.contains("torque_share_rough.png"));
-    assert!(html.contains("tracking reward (mean over training, every cell): w2 = -10, -7.33. "));
-    assert!(html.contains("tracking reward (mean over training, every cell): w2 = -10. "));
+    assert!(
+        html.contains("tracking reward (mean over training, every scored cell): w2 = -10, -7.33. ")
+    );
+    assert!(html.contains("tracking reward (mean over training, every scored cell): w2 = -10. "));
 }
 
 #[test]
@@ -376,6 +383,11 @@ fn points_near_the_best_are_read_with_the_spread_of_one_run() {
         // t(0.975, 4 dof) 2.776 x 0.010 / sqrt 3 = 0.016.
         row("best point")
             .contains("| (12, -7.33): 0.188 \u{b1} 0.016 over 3 runs (nominal 95% for this point alone, one run's SD 0.010; the highest of 11 points' means reads high) |"),
+        "{md}"
+    );
+    // Its first seed walks (|v_cmd - v| 0.1 at 1 m/s), the two more seeds 0.3 at rest.
+    assert!(
+        row("the best point's gait").contains("| not reported (Eq. 4's score only) | falls 0.0%, \\|v_cmd - v\\| 0.233 m/s, mean speed 0.333 m/s, overspeed 0.000 m/s (mean over 3 runs and the levels) |"),
         "{md}"
     );
     assert!(row("where the best").ends_with("| on the grid's edge | on the grid's edge |"));
