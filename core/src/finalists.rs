@@ -102,6 +102,15 @@ impl ResolvedSpec {
         }
         out
     }
+
+    /// Cells the finalist stage will queue: `top` points of each terrain, `seeds - 1` more
+    /// seeds each (fewer only if a terrain ends with fewer scored points). 0 without
+    /// finalists. What a progress count adds while the first pass runs.
+    pub fn finalist_cell_count(&self) -> usize {
+        self.finalists.map_or(0, |f| {
+            self.terrains.len() * f.top as usize * (f.seeds as usize).saturating_sub(1)
+        })
+    }
 }
 
 #[cfg(test)]
@@ -135,6 +144,12 @@ mod tests {
         let picks = [(1, 2, 0), (0, 0, 1)];
         let cells = s.finalist_cells(&picks);
         assert_eq!(cells.len(), 4);
+        assert_eq!(
+            s.finalist_cell_count(),
+            8,
+            "2 terrains x 2 points x 2 more seeds"
+        );
+        assert_eq!(resolve("").unwrap().finalist_cell_count(), 0);
         for c in &cells {
             let twin = replicated
                 .iter()

@@ -53,6 +53,9 @@ struct SweepSummary {
     epochs_total: i64,
     epochs_per_second: Option<f64>,
     eta_seconds: Option<f64>,
+    /// Cells the finalist stage will add once the first pass ends (0 once it has queued
+    /// them, or without finalists): counted in `epochs_total`, so the ETA covers them.
+    finalists_to_come: u32,
 }
 
 /// A sweep's epochs by its cells' states, for its progress.
@@ -85,6 +88,16 @@ impl EpochCounts {
     }
 }
 
+/// Cells a running sweep's finalist stage will still queue: until its first pass ends, its
+/// finalists are not cells yet, so the count of cells and the epochs to go leave them out.
+fn finalists_to_come(running: bool, cells_total: u32, spec: &gaitsweep_core::ResolvedSpec) -> u32 {
+    if running && cells_total as usize == spec.cell_count() {
+        spec.finalist_cell_count() as u32
+    } else {
+        0
+    }
+}
+
 pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
     let records = live.coord.store.list_sweeps().await?;
     let counts: BTreeMap<i64, EpochCounts> = sqlx::query_as(
@@ -108,8 +121,10 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
         .map(|s| {
             let c = counts.get(&s.id.0).copied().unwrap_or_default();
             let epochs_done = c.done;
-            let epochs_total = c.total(s.spec.epochs, s.cells_total, s.spec.budget_epochs());
             let running = s.state == gaitsweep_core::SweepState::Running;
+            let finalists_to_come = finalists_to_come(running, s.cells_total, &s.spec);
+            let epochs_total = c.total(s.spec.epochs, s.cells_total, s.spec.budget_epochs())
+                + i64::from(finalists_to_come) * i64::from(s.spec.epochs);
             let secs = (now - s.created_unix_ms).max(1) as f64 / 1000.0;
             let rate = (running && epochs_done > 0).then(|| epochs_done as f64 / secs);
             let search = gaitsweep_search::describe(&s.spec);
@@ -136,6 +151,7 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
                 eta_seconds: rate
                     .filter(|_| search.known_total)
                     .map(|r| (epochs_total - epochs_done).max(0) as f64 / r),
+                finalists_to_come,
             }
         })
         .collect();
@@ -502,7 +518,7 @@ pub(crate) async fn report_file(
 
 #[cfg(test)]
 mod tests {
-    use super::EpochCounts;
+    use super::{finalists_to_come, EpochCounts};
 
     #[test]
     fn a_grid_counts_closed_cells_at_the_epochs_they_trained() {
@@ -538,5 +554,33 @@ mod tests {
         assert_eq!(c.total(100, 12, Some(3_000)), 2_700);
         // Never below what was trained.
         assert_eq!(c.total(100, 12, Some(1_100)), 1_000);
+    }
+
+    #[test]
+    fn a_first_pass_counts_the_finalists_it_will_queue() {
+        let spec = gaitsweep_core::SweepSpec::from_toml(
+            &std::fs::read_to_string(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../studies/anymal.toml"
+            ))
+            .unwrap(),
+        )
+        .unwrap();
+        let spec = crate::presets::resolve(&spec).unwrap();
+        // 2 terrains x the top 4 points x 2 more seeds, while the 56 first-pass cells run.
+        assert_eq!(finalists_to_come(true, 56, &spec), 16);
+        assert_eq!(
+            finalists_to_come(true, 72, &spec),
+            0,
+            "queued: they are cells"
+        );
+        assert_eq!(
+            finalists_to_come(false, 56, &spec),
+            0,
+            "a stopped sweep queues none"
+        );
+        let mut plain = spec.clone();
+        plain.finalists = None;
+        assert_eq!(finalists_to_come(true, 56, &plain), 0);
     }
 }
