@@ -59,6 +59,38 @@ pub struct RecordedRun {
     pub score: f64,
     /// Gait scores of its intermediate evaluations, by epoch.
     pub evals: BTreeMap<u32, f64>,
+    /// How its final policy walked (exports since session 47 carry it; the replays ignore it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gait: Option<RecordedGait>,
+}
+
+/// How a recorded run's final policy walked in its final evaluation: what says whether a
+/// score is a gait (the falls and the tracking), beside the score.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordedGait {
+    /// Fraction of the evaluation robots that fell (mean over the levels).
+    pub fall_rate: f64,
+    /// Mean |v_cmd - v| (m/s, mean over the levels).
+    pub mean_vel_error: f64,
+    /// Mean speed (m/s); absent where the database predates it.
+    pub mean_speed: Option<f64>,
+    /// Mean of max(0, |v| - |v_cmd|) (m/s); absent where the database predates it.
+    pub overspeed: Option<f64>,
+    /// The same at each evaluation level, by level.
+    pub levels: Vec<RecordedLevel>,
+}
+
+/// One evaluation level of a [`RecordedGait`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordedLevel {
+    /// Terrain difficulty level.
+    pub level: u32,
+    /// Gait score at that level.
+    pub score: f64,
+    /// Fraction of robots that fell.
+    pub fall_rate: f64,
+    /// Mean |v_cmd - v| (m/s).
+    pub mean_vel_error: f64,
 }
 
 /// One grid point and its replicates.

@@ -27,6 +27,7 @@ fn synthetic(noise: f64) -> Recording {
                         seed: r,
                         score,
                         evals,
+                        gait: None,
                     }
                 })
                 .collect();
@@ -181,6 +182,7 @@ fn a_single_seed_grid_is_only_as_sure_as_its_runs() {
         seed: 0,
         score,
         evals: BTreeMap::new(),
+        gait: None,
     };
     let rec = Recording {
         source: "two points".into(),
@@ -378,6 +380,23 @@ fn the_kept_study_recordings_are_their_specs_grids() {
                 .all(|run| run.score.is_finite()),
             "{name}: a run without a finite score"
         );
+        // Each run says how it walked at every level the spec evaluates.
+        let levels: Vec<u32> = r
+            .eval_levels_for(terrain)
+            .into_iter()
+            .map(u32::from)
+            .collect();
+        for run in rec.points.iter().flat_map(|p| &p.runs) {
+            let gait = run.gait.as_ref().unwrap_or_else(|| {
+                panic!("{name}: a run without its gait: run scripts/study-docs.sh {robot}")
+            });
+            assert_eq!(
+                gait.levels.iter().map(|l| l.level).collect::<Vec<_>>(),
+                levels,
+                "{name}"
+            );
+            assert!((0.0..=1.0).contains(&gait.fall_rate), "{name}");
+        }
         seen += 1;
     }
     assert!(seen >= 1, "no study recording in {data:?}");

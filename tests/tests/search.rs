@@ -565,6 +565,18 @@ async fn a_recorded_grid_replays_in_the_search_bench() {
         run0["evals"]["1"].is_number() && run0["evals"]["2"].is_number(),
         "{run0}"
     );
+    // How each run walked, beside its score: flat ground is evaluated at level 0 only, so
+    // the level's falls are the run's.
+    let gait = &run0["gait"];
+    let falls = gait["fall_rate"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&falls), "{gait}");
+    assert!(gait["mean_vel_error"].as_f64().unwrap() >= 0.0, "{gait}");
+    assert!(gait["overspeed"].as_f64().unwrap() >= 0.0, "{gait}");
+    let levels = gait["levels"].as_array().unwrap();
+    assert_eq!(levels.len(), 1, "{gait}");
+    assert_eq!(levels[0]["level"].as_u64(), Some(0));
+    assert!((levels[0]["fall_rate"].as_f64().unwrap() - falls).abs() < 1e-12);
+    assert!((levels[0]["score"].as_f64().unwrap() - run0["score"].as_f64().unwrap()).abs() < 1e-12);
     let file = tmp.path().join("grid.json");
     std::fs::write(&file, &out.stdout).unwrap();
     let out = std::process::Command::new(bin("search-bench"))

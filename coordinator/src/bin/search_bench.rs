@@ -8,7 +8,8 @@
 use anyhow::{bail, Context};
 use clap::{Parser, Subcommand};
 use gaitsweep_coordinator::searchbench::{
-    self, AshaSetup, EvolutionSetup, RecordedPoint, RecordedRun, Recording, Summary,
+    self, AshaSetup, EvolutionSetup, RecordedGait, RecordedLevel, RecordedPoint, RecordedRun,
+    Recording, Summary,
 };
 use gaitsweep_coordinator::store::queries;
 use std::collections::BTreeMap;
@@ -282,14 +283,46 @@ async fn export(
         .map(str::to_string)
         .or_else(|| spec.terrains.first().map(|t| t.to_string()))
         .context("the sweep has no terrain")?;
-    let rows: Vec<(i64, i64, i64, i64, f64)> = sqlx::query_as(
-        "SELECT c.id, c.w1_index, c.w2_index, c.seed, s.score FROM cells c JOIN scores s ON s.cell_id = c.id \
+    #[derive(sqlx::FromRow)]
+    struct Row {
+        id: i64,
+        w1_index: i64,
+        w2_index: i64,
+        seed: i64,
+        score: f64,
+        fall_rate: f64,
+        mean_vel_error: f64,
+        mean_speed: Option<f64>,
+        overspeed: Option<f64>,
+    }
+    let rows: Vec<Row> = sqlx::query_as(
+        "SELECT c.id, c.w1_index, c.w2_index, c.seed, s.score, s.fall_rate, s.mean_vel_error, \
+         s.mean_speed, s.overspeed FROM cells c JOIN scores s ON s.cell_id = c.id \
          WHERE c.sweep_id = $1 AND c.terrain = $2 ORDER BY c.w1_index, c.w2_index, c.replicate",
     )
     .bind(sweep)
     .bind(&terrain)
     .fetch_all(&db)
     .await?;
+    // The final evaluation's levels: the rows at the epoch the score was taken.
+    let level_rows: Vec<(i64, i64, f64, f64, f64)> = sqlx::query_as(
+        "SELECT l.cell_id, l.level, l.score, l.fall_rate, l.mean_vel_error FROM level_scores l \
+         JOIN cells c ON c.id = l.cell_id JOIN scores s ON s.cell_id = l.cell_id AND s.epochs = l.epoch \
+         WHERE c.sweep_id = $1 AND c.terrain = $2 ORDER BY l.cell_id, l.level",
+    )
+    .bind(sweep)
+    .bind(&terrain)
+    .fetch_all(&db)
+    .await?;
+    let mut levels: BTreeMap<i64, Vec<RecordedLevel>> = BTreeMap::new();
+    for (cell, level, score, fall_rate, mean_vel_error) in level_rows {
+        levels.entry(cell).or_default().push(RecordedLevel {
+            level: level as u32,
+            score,
+            fall_rate,
+            mean_vel_error,
+        });
+    }
     let evals =
         queries::evaluations(&db, gaitsweep_core::SweepId(sweep), queries::EvalKinds::All).await?;
     let mut by_cell: BTreeMap<i64, BTreeMap<u32, f64>> = BTreeMap::new();
@@ -300,14 +333,21 @@ async fn export(
             .insert(e.epoch as u32, e.score);
     }
     let mut points: BTreeMap<(usize, usize), Vec<RecordedRun>> = BTreeMap::new();
-    for (id, i, j, seed, score) in rows {
+    for r in rows {
         points
-            .entry((i as usize, j as usize))
+            .entry((r.w1_index as usize, r.w2_index as usize))
             .or_default()
             .push(RecordedRun {
-                seed: seed as u64,
-                score,
-                evals: by_cell.remove(&id).unwrap_or_default(),
+                seed: r.seed as u64,
+                score: r.score,
+                evals: by_cell.remove(&r.id).unwrap_or_default(),
+                gait: Some(RecordedGait {
+                    fall_rate: r.fall_rate,
+                    mean_vel_error: r.mean_vel_error,
+                    mean_speed: r.mean_speed,
+                    overspeed: r.overspeed,
+                    levels: levels.remove(&r.id).unwrap_or_default(),
+                }),
             });
     }
     let mut w1 = spec.w1_values.clone();
