@@ -91,6 +91,10 @@ pub struct RecordedLevel {
     pub fall_rate: f64,
     /// Mean |v_cmd - v| (m/s).
     pub mean_vel_error: f64,
+    /// Mean speed (m/s).
+    pub mean_speed: f64,
+    /// Mean of max(0, |v| - |v_cmd|) (m/s).
+    pub overspeed: f64,
 }
 
 /// One grid point and its replicates.
@@ -119,6 +123,9 @@ pub struct Recording {
     pub w2_values: Vec<f64>,
     /// Every point of the grid.
     pub points: Vec<RecordedPoint>,
+    /// The spec the sweep ran with, as the coordinator stored it (exports since session 47).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spec: Option<gaitsweep_core::ResolvedSpec>,
 }
 
 impl Recording {

@@ -45,6 +45,7 @@ fn synthetic(noise: f64) -> Recording {
         w1_values: w1,
         w2_values: w2,
         points,
+        spec: None,
     }
 }
 
@@ -202,6 +203,7 @@ fn a_single_seed_grid_is_only_as_sure_as_its_runs() {
                 runs: vec![run(0.7), run(0.7)],
             },
         ],
+        spec: None,
     };
     let sum = summarise(
         &(0..400)
@@ -318,8 +320,9 @@ fn random_search_spends_its_share_and_finds_the_best_as_often_as_it_draws_it() {
 
 /// The study recordings kept in `tests/data/` (`scripts/study-docs.sh`, issue 39) each sit
 /// beside the spec they were recorded with, and are that spec's full grid on one of its
-/// terrains: the spec is the study's (`studies/ROBOT.toml`), and the recording's axes,
-/// budget, terrain and sweep name are the ones that spec resolves to.
+/// terrains: the spec beside it resolves to the spec the coordinator stored when the sweep
+/// was created (carried in the export), as the study's own (`studies/ROBOT.toml`) does, and
+/// the recording's axes, budget, terrain and sweep name are that spec's.
 #[test]
 fn the_kept_study_recordings_are_their_specs_grids() {
     let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data");
@@ -337,16 +340,25 @@ fn the_kept_study_recordings_are_their_specs_grids() {
         let spec_path = data.join(format!("study-{robot}.toml"));
         let spec_text = std::fs::read_to_string(&spec_path)
             .unwrap_or_else(|e| panic!("{name} has no spec beside it ({spec_path:?}): {e}"));
-        let study = data.join(format!("../../studies/{robot}.toml"));
-        assert_eq!(
-            spec_text,
-            std::fs::read_to_string(&study).unwrap(),
-            "{spec_path:?} is not the study's spec {study:?}: run scripts/study-docs.sh {robot}"
-        );
-        let spec = gaitsweep_core::SweepSpec::from_toml(&spec_text).unwrap();
-        let r = crate::presets::resolve(&spec).unwrap();
+        let resolve = |text: &str| {
+            crate::presets::resolve(&gaitsweep_core::SweepSpec::from_toml(text).unwrap()).unwrap()
+        };
+        let r = resolve(&spec_text);
         let rec: Recording =
             serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let stored = rec.spec.as_ref().unwrap_or_else(|| {
+            panic!("{name} carries no stored spec: run scripts/study-docs.sh {robot}")
+        });
+        assert_eq!(
+            &r, stored,
+            "{spec_path:?} is not the spec {name} was recorded with"
+        );
+        let study = data.join(format!("../../studies/{robot}.toml"));
+        assert_eq!(
+            &resolve(&std::fs::read_to_string(&study).unwrap()),
+            stored,
+            "{study:?} no longer resolves to the spec its recording ran with: record again, or keep a new study under a new name"
+        );
         rec.validate().unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(rec.terrain, terrain, "{name}");
         assert!(

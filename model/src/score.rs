@@ -1,4 +1,4 @@
-//! The gait score (paper Eq. 4, our reading in DESIGN.md) of a cell and the locomotion
+//! The gait score (paper Eq. 4, our reading: README "What a score measures") of a cell and the locomotion
 //! metrics recorded beside it. The simulator computes it (`gaitsweep_sim::score`).
 
 use std::collections::BTreeMap;

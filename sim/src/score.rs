@@ -1,4 +1,4 @@
-//! The gait score (paper Eq. 4, our reading in DESIGN.md) and the locomotion metrics
+//! The gait score (paper Eq. 4, our reading: README "What a score measures") and the locomotion metrics
 //! recorded beside it.
 
 pub use gaitsweep_model::{GaitScore, LevelScore, ScoreVariant};
@@ -75,7 +75,7 @@ impl ScoreAccumulator {
     }
 
     /// This robot's J over an episode of `episode_steps` (at least its own): steps after a
-    /// fall count zero (DESIGN.md, "Falls").
+    /// fall count zero (README, "When a robot falls").
     pub fn j_over(&self, episode_steps: u64, variant: ScoreVariant) -> f64 {
         let t = episode_steps.max(self.steps);
         if t == 0 {
@@ -95,7 +95,7 @@ impl ScoreAccumulator {
 /// Averages robots' accumulators into a cell's score. `mass` is the robot's mass (kg);
 /// `episode_steps` is the evaluation episode's full length T: the track, effort and tilt
 /// sums are divided by T for every robot, so a robot that fell at step k gets nothing for
-/// steps k..T (DESIGN.md, "Falls"). The velocity error, torque and cost of transport are
+/// steps k..T (README, "When a robot falls"). The velocity error, torque and cost of transport are
 /// means over the steps each robot walked. `variant` picks the progress term of J; both
 /// progress terms are reported.
 pub fn summarize(

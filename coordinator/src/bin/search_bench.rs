@@ -305,8 +305,9 @@ async fn export(
     .fetch_all(&db)
     .await?;
     // The final evaluation's levels: the rows at the epoch the score was taken.
-    let level_rows: Vec<(i64, i64, f64, f64, f64)> = sqlx::query_as(
-        "SELECT l.cell_id, l.level, l.score, l.fall_rate, l.mean_vel_error FROM level_scores l \
+    let level_rows: Vec<(i64, i64, f64, f64, f64, f64, f64)> = sqlx::query_as(
+        "SELECT l.cell_id, l.level, l.score, l.fall_rate, l.mean_vel_error, l.mean_speed, l.overspeed \
+         FROM level_scores l \
          JOIN cells c ON c.id = l.cell_id JOIN scores s ON s.cell_id = l.cell_id AND s.epochs = l.epoch \
          WHERE c.sweep_id = $1 AND c.terrain = $2 ORDER BY l.cell_id, l.level",
     )
@@ -315,12 +316,14 @@ async fn export(
     .fetch_all(&db)
     .await?;
     let mut levels: BTreeMap<i64, Vec<RecordedLevel>> = BTreeMap::new();
-    for (cell, level, score, fall_rate, mean_vel_error) in level_rows {
+    for (cell, level, score, fall_rate, mean_vel_error, mean_speed, overspeed) in level_rows {
         levels.entry(cell).or_default().push(RecordedLevel {
             level: level as u32,
             score,
             fall_rate,
             mean_vel_error,
+            mean_speed,
+            overspeed,
         });
     }
     let evals =
@@ -366,6 +369,7 @@ async fn export(
     };
     let (r1, r2) = (order(&mut w1), order(&mut w2));
     Ok(Recording {
+        spec: Some(spec.clone()),
         source: format!("sweep {sweep} {name:?}, seeds {}", spec.replicates),
         terrain,
         epochs: spec.epochs,

@@ -270,15 +270,29 @@ fn gait_at(scored: &[&super::ReportCell], p: (usize, usize)) -> String {
     if runs.is_empty() {
         return "none scored".into();
     }
-    let mean = |f: fn(&gaitsweep_model::GaitScore) -> f64| {
-        runs.iter().map(|s| f(s)).sum::<f64>() / runs.len() as f64
-    };
+    // Scores stored before a metric existed read it as NaN: "not recorded", not "NaN m/s".
+    let mean =
+        |f: fn(&gaitsweep_model::GaitScore) -> f64, unit: &str, scale: f64, digits: usize| {
+            let v: Vec<f64> = runs
+                .iter()
+                .map(|s| f(s))
+                .filter(|v| v.is_finite())
+                .collect();
+            if v.is_empty() {
+                "not recorded".to_string()
+            } else {
+                format!(
+                    "{:.digits$}{unit}",
+                    scale * v.iter().sum::<f64>() / v.len() as f64
+                )
+            }
+        };
     format!(
-        "falls {:.1}%, |v_cmd - v| {:.3} m/s, mean speed {:.3} m/s, overspeed {:.3} m/s (mean over {} run{} and the levels)",
-        100.0 * mean(|s| s.fall_rate),
-        mean(|s| s.mean_vel_error),
-        mean(|s| s.mean_speed),
-        mean(|s| s.overspeed),
+        "falls {}, |v_cmd - v| {}, mean speed {}, overspeed {} (mean over {} run{} and the levels)",
+        mean(|s| s.fall_rate, "%", 100.0, 1),
+        mean(|s| s.mean_vel_error, " m/s", 1.0, 3),
+        mean(|s| s.mean_speed, " m/s", 1.0, 3),
+        mean(|s| s.overspeed, " m/s", 1.0, 3),
         runs.len(),
         if runs.len() == 1 { "" } else { "s" },
     )

@@ -391,6 +391,20 @@ fn points_near_the_best_are_read_with_the_spread_of_one_run() {
         "{md}"
     );
     assert!(row("where the best").ends_with("| on the grid's edge | on the grid's edge |"));
+    // A score stored before speeds were measured reads them as NaN: said, not printed.
+    let mut old = d.clone();
+    for c in old
+        .cells
+        .iter_mut()
+        .filter(|c| c.terrain_index == 0 && c.grid() == Some((2, 1)))
+    {
+        c.score.as_mut().unwrap().mean_speed = f64::NAN;
+    }
+    let old_md = super::super::findings::markdown(&old).unwrap();
+    assert!(
+        old_md.contains("| falls 0.0%, \\|v_cmd - v\\| 0.233 m/s, mean speed not recorded, overspeed 0.000 m/s (mean over 3 runs"),
+        "{old_md}"
+    );
     // Flat's means: rows 0.1 apart, columns -0.1125 / -0.0125 / -0.0125 / -0.1125, (2, -2)
     // unscored. Along w1 all 7 steps rise; along w2 the 3 steps between the two equal
     // columns do not, the other 5 do. Every step is 0.1, of the range 0.1875 + 0.1125:
