@@ -51,6 +51,7 @@ struct SweepSummary {
     cells: BTreeMap<&'static str, u32>,
     epochs_done: i64,
     epochs_total: i64,
+    /// Epochs a second at the speed its workers train now ([`super::rate::epochs_per_second`]).
     epochs_per_second: Option<f64>,
     eta_seconds: Option<f64>,
     /// Cells the finalist stage will add once the first pass ends (0 once it has queued
@@ -116,6 +117,18 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
     })
     .collect();
     let now = now_ms();
+    let mut speeds = BTreeMap::new();
+    for s in &records {
+        if s.state == gaitsweep_core::SweepState::Running {
+            speeds.insert(
+                s.id.0,
+                super::rate::epochs_per_second(
+                    &queries::attempt_spans(&live.db, s.id, now - super::rate::WINDOW_MS).await?,
+                    now,
+                ),
+            );
+        }
+    }
     let out: Vec<SweepSummary> = records
         .iter()
         .map(|s| {
@@ -125,8 +138,7 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
             let finalists_to_come = finalists_to_come(running, s.cells_total, &s.spec);
             let epochs_total = c.total(s.spec.epochs, s.cells_total, s.spec.budget_epochs())
                 + i64::from(finalists_to_come) * i64::from(s.spec.epochs);
-            let secs = (now - s.created_unix_ms).max(1) as f64 / 1000.0;
-            let rate = (running && epochs_done > 0).then(|| epochs_done as f64 / secs);
+            let rate = speeds.get(&s.id.0).copied().flatten();
             let search = gaitsweep_search::describe(&s.spec);
             SweepSummary {
                 id: s.id.0,

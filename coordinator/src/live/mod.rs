@@ -10,6 +10,7 @@
 //! that drops it from the address bar), the cookie, or `Authorization: Bearer`.
 
 mod api;
+mod rate;
 
 use crate::service::Coordinator;
 use crate::store::SqlStore;

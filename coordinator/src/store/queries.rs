@@ -216,3 +216,46 @@ pub async fn attempt_cpus<'e>(
     }
     Ok(by_cell)
 }
+
+/// One lease of a cell as the live page's speed reads it ([`crate::live`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AttemptSpan {
+    /// When it was leased.
+    pub started_ms: i64,
+    /// When it ended; `None` while it runs.
+    pub ended_ms: Option<i64>,
+    /// Epochs it trained: its last epoch less the one it resumed from.
+    pub epochs: i64,
+}
+
+/// `sweep`'s attempts running now, and those done or released after `since_ms` (an expired
+/// lease's end is when the coordinator noticed, not when its worker stopped), in the order
+/// they started.
+pub async fn attempt_spans<'e>(
+    db: impl Executor<'e, Database = Any>,
+    sweep: SweepId,
+    since_ms: i64,
+) -> Result<Vec<AttemptSpan>> {
+    // An ended attempt's last epoch is its newest metric row.
+    let rows: Vec<(i64, Option<i64>, i64)> = sqlx::query_as(
+        "SELECT a.started_unix_ms, a.ended_unix_ms, CAST(CASE WHEN a.state = 'running' THEN c.epochs_done \
+             ELSE COALESCE((SELECT m.epoch FROM epoch_metrics m WHERE m.cell_id = a.cell_id \
+                 AND m.attempt_id = a.id ORDER BY m.epoch DESC LIMIT 1), a.resumed_from_epoch) \
+             END - a.resumed_from_epoch AS BIGINT) \
+         FROM attempts a JOIN cells c ON c.id = a.cell_id WHERE c.sweep_id = $1 \
+         AND (a.state = 'running' OR (a.state IN ('done', 'released') AND a.ended_unix_ms > $2)) \
+         ORDER BY a.started_unix_ms, a.id",
+    )
+    .bind(sweep.0)
+    .bind(since_ms)
+    .fetch_all(db)
+    .await?;
+    Ok(rows
+        .into_iter()
+        .map(|(started_ms, ended_ms, epochs)| AttemptSpan {
+            started_ms,
+            ended_ms,
+            epochs,
+        })
+        .collect())
+}

@@ -200,4 +200,5 @@ conformance!(
     old_candidates_move_to_their_own_columns,
     never_rewarded_cells_are_the_done_ones_with_zero_reward,
     a_cell_stopped_early_keeps_no_rows_of_a_killed_attempts_later_epochs,
+    attempt_spans_count_each_leases_epochs,
 );

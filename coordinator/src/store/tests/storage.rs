@@ -388,3 +388,75 @@ pub(super) async fn a_cell_stopped_early_keeps_no_rows_of_a_killed_attempts_late
         "the run that finished was never rewarded"
     );
 }
+
+/// The live page's speed reads each attempt's wall time and the epochs it trained: a done
+/// one to its last reported epoch, a released one too, a running one to its cell's epoch.
+pub(super) async fn attempt_spans_count_each_leases_epochs() {
+    let (_d, store, w) = setup().await;
+    let sweep = store
+        .create_sweep(&spec(2, 1, vec![TerrainKind::Flat]), 0)
+        .await
+        .unwrap();
+    let reward = |e: u32| (e, metrics(&[("mean_step_reward", 0.1)]));
+    // Cell 1: leased at 1,000, 2 epochs and a checkpoint, released at 3,000; leased again
+    // at 4,000, resumed at epoch 2, its third epoch, done at 6,000. Cell 2: leased at 7,000, 2 epochs so far.
+    let g = store.lease_next(&w, 0, 1_000).await.unwrap().unwrap();
+    store
+        .record_progress(g.lease, &[reward(1), reward(2)])
+        .await
+        .unwrap();
+    let ck = CheckpointRecord {
+        sha256: "a".repeat(64),
+        size: 10,
+        epoch: 2,
+    };
+    store
+        .record_checkpoint(g.lease, &ck, "x", 2_500)
+        .await
+        .unwrap();
+    store
+        .end_attempt(
+            g.lease,
+            AttemptEnd::Released,
+            "released: worker stopping",
+            2,
+            3_000,
+        )
+        .await
+        .unwrap();
+    let g = store.lease_next(&w, 0, 4_000).await.unwrap().unwrap();
+    assert_eq!(
+        g.resume.as_ref().map(|c| c.epoch),
+        Some(2),
+        "resumed from its checkpoint"
+    );
+    store.record_progress(g.lease, &[reward(3)]).await.unwrap();
+    report_at_target(&store, &g, 0.5, 6_000).await;
+    let g = store.lease_next(&w, 0, 7_000).await.unwrap().unwrap();
+    store
+        .record_progress(g.lease, &[reward(1), reward(2)])
+        .await
+        .unwrap();
+    let span = |started_ms, ended_ms, epochs| queries::AttemptSpan {
+        started_ms,
+        ended_ms,
+        epochs,
+    };
+    assert_eq!(
+        queries::attempt_spans(store.reader(), sweep.id, 0)
+            .await
+            .unwrap(),
+        [
+            span(1_000, Some(3_000), 2),
+            span(4_000, Some(6_000), 1),
+            span(7_000, None, 2)
+        ]
+    );
+    assert_eq!(
+        queries::attempt_spans(store.reader(), sweep.id, 5_000)
+            .await
+            .unwrap(),
+        [span(4_000, Some(6_000), 1), span(7_000, None, 2)],
+        "attempts ended before the window are left out"
+    );
+}
