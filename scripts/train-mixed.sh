@@ -46,12 +46,14 @@ source scripts/setup.sh > /dev/null
 cargo build --release -q -p gaitsweep-worker
 export GAITSWEEP_ROBOTS="$PWD/robots"
 jobs="${JOBS:-1}"
+epochs="${EPOCHS:-1200}"
+# A seed's last checkpoint, the one its evaluation reads.
+final_ckpt() { echo "$out/seed-$1/ckpt-$(printf %06d "$epochs").safetensors"; }
 train_one() {
   local seed="$1" dir="$out/seed-$1" last
-  local epochs="${EPOCHS:-1200}"
   mkdir -p "$dir"
   last="$(ls "$dir"/ckpt-*.safetensors 2> /dev/null | sort | tail -n 1 || true)"
-  if [ -n "$last" ] && [ "$last" = "$dir/ckpt-$(printf %06d "$epochs").safetensors" ]; then
+  if [ -n "$last" ] && [ "$last" = "$(final_ckpt "$seed")" ]; then
     echo "seed $seed: trained already ($last)" >&2
     return 0
   fi
@@ -71,6 +73,6 @@ done
 for p in "${pids[@]}"; do wait "$p"; done
 ckpts=()
 for seed in "$@"; do
-  ckpts+=("$out/seed-$seed/ckpt-$(printf %06d "${EPOCHS:-1200}").safetensors")
+  ckpts+=("$(final_ckpt "$seed")")
 done
 JOBS="$jobs" ROBOTS="${EVAL_ROBOTS:-256}" scripts/eval-terrains.sh "$out/eval" "${ckpts[@]}"
