@@ -4,9 +4,9 @@
 # writes the report's score heatmaps (peak marked), 3D surfaces, fall rates, the score's
 # tracking component, torque shares and the overlap across terrains to docs/study/ROBOT/
 # (replacing the pictures there) with findings.md (the paper's findings beside the sweep's),
-# and each terrain's
-# grid as JSON to tests/data/study-ROBOT-TERRAIN.json once every point of it is scored, with
-# the spec it was recorded with beside it (tests/data/study-ROBOT.toml).
+# each terrain's grid as JSON to tests/data/study-ROBOT-TERRAIN.json once every point of it
+# is scored, with the spec it was recorded with beside it (tests/data/study-ROBOT.toml), and
+# docs/study/findings.md: every recording's findings in one table (`coordinator findings`).
 #
 #   scripts/study-docs.sh anymal
 #   scripts/study-docs.sh heavy
@@ -56,3 +56,30 @@ for t in $TERRAINS; do
     echo "grid of $t not exported yet: $(tail -1 "$TMP/$t.err")"
   fi
 done
+# The study's one table (README "The paper's study"): every robot recorded so far, one column
+# per robot and terrain, from copies laid out as the repository's so that the text names
+# studies/recordings/ROBOT, with links to each robot's pictures.
+mkdir -p "$TMP/all/studies/recordings"
+SOURCES=()
+for snap in studies/recordings/*; do
+  [ -e "$snap/gaitsweep.sqlite" ] && [ -e "$snap/sweep.id" ] || continue
+  mkdir -p "$TMP/all/$snap"
+  cp "$snap/gaitsweep.sqlite" "$snap/sweep.id" "$TMP/all/$snap/"
+  SOURCES+=("$snap")
+done
+STUDY="docs/study/findings.md"
+(cd "$TMP/all" && "$BIN/coordinator" findings "${SOURCES[@]}" --out "$OLDPWD/$STUDY")
+{
+  printf '\nThe pictures (score heatmaps with the best point marked, 3D surfaces, fall rates):\n\n'
+  for snap in "${SOURCES[@]}"; do
+    r="$(basename "$snap")"
+    links=""
+    for f in docs/study/"$r"/{score,surface,fall_rate}_*.png docs/study/"$r"/overlap.png; do
+      [ -e "$f" ] || continue
+      name="$(basename "$f" .png)"
+      links="$links${links:+, }[${name//_/ }]($r/$name.png)"
+    done
+    printf -- '- %s: %s\n' "$r" "${links:-none drawn yet (run scripts/study-docs.sh $r)}"
+  done
+} >> "$STUDY"
+echo "the study's table of ${#SOURCES[@]} recording(s): $STUDY"

@@ -24,6 +24,8 @@ enum Cmd {
     Serve(ServeArgs),
     /// Write a sweep's report (heatmaps, 3D surface, learning curves, gait GIF, index.html) from the data dir's database.
     Report(gaitsweep_coordinator::report::ReportArgs),
+    /// Write the paper's findings beside several grid sweeps' (one per robot) as one Markdown table.
+    Findings(gaitsweep_coordinator::report::study::FindingsArgs),
     /// Write every metric of a sweep's cells as a TensorBoard log dir (one run per cell).
     Tensorboard(gaitsweep_coordinator::report::tensorboard::TensorboardArgs),
     /// Copy a SQLite data dir's database and the checkpoints a later sitting resumes from
@@ -111,6 +113,7 @@ fn run() -> anyhow::Result<()> {
                 Ok(())
             }
             Cmd::Report(a) => Ok(gaitsweep_coordinator::report::run(a).await?),
+            Cmd::Findings(a) => Ok(gaitsweep_coordinator::report::study::run(a).await?),
             Cmd::Tensorboard(a) => Ok(gaitsweep_coordinator::report::tensorboard::run(a).await?),
             Cmd::Snapshot(a) => Ok(gaitsweep_coordinator::snapshot::run(a).await?),
             Cmd::Client(c) => cli::run(c).await,

@@ -41,7 +41,7 @@ pub fn markdown(d: &ReportData) -> Option<String> {
         o,
         "# The paper's findings beside sweep {} \"{}\" ({})\n",
         d.sweep_id,
-        d.name.replace('"', "'").replace('\n', " "),
+        one_line(&d.name),
         d.robot
     );
     let _ = writeln!(
@@ -53,20 +53,103 @@ pub fn markdown(d: &ReportData) -> Option<String> {
     if let Some(m) = super::machines::summary(&d.cells, false) {
         let _ = writeln!(o, "{m}\n");
     }
+    let near = near_of(d);
+    let columns: Vec<(String, Column)> = d
+        .terrains
+        .iter()
+        .cloned()
+        .zip(columns_of(d, &near))
+        .collect();
+    table(&mut o, &columns);
+    if d.terrains.len() > 1 {
+        let _ = writeln!(o, "\nAcross terrains (the paper: {}):\n", paper::OVERLAP);
+        for item in across_terrains(d, &near) {
+            let _ = writeln!(o, "- {item}");
+        }
+    }
+    Some(o)
+}
+
+/// The paper's findings beside several grid sweeps' in one table, one column per robot and
+/// terrain: the write-up of a study recorded as one sweep per robot. Each sweep comes with
+/// where it was read from, named in the text. Evolutionary searches are left to the caller
+/// to refuse (their candidates are not a grid).
+pub fn study_markdown(sweeps: &[(String, &ReportData)]) -> String {
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "# The paper's study: its findings beside the recordings\n\n\
+         Written by `coordinator findings` from {} sweep{}, one column per robot and terrain:\n",
+        sweeps.len(),
+        if sweeps.len() == 1 { "" } else { "s" }
+    );
+    for (source, d) in sweeps {
+        let _ = write!(
+            o,
+            "- {}: sweep {} \"{}\" read from {source} (state: {}). Budget: {}.",
+            d.robot,
+            d.sweep_id,
+            one_line(&d.name),
+            d.state,
+            d.budget
+        );
+        if let Some(m) = super::machines::summary(&d.cells, false) {
+            let _ = write!(o, " {m}");
+        }
+        o.push('\n');
+    }
+    o.push('\n');
+    let near: Vec<Vec<Option<NearBest>>> = sweeps.iter().map(|(_, d)| near_of(d)).collect();
+    let columns: Vec<(String, Column)> = sweeps
+        .iter()
+        .zip(&near)
+        .flat_map(|((_, d), n)| {
+            d.terrains
+                .iter()
+                .map(|t| format!("{} {t}", d.robot))
+                .zip(columns_of(d, n))
+        })
+        .collect();
+    table(&mut o, &columns);
+    let several: Vec<_> = sweeps
+        .iter()
+        .zip(&near)
+        .filter(|((_, d), _)| d.terrains.len() > 1)
+        .collect();
+    if !several.is_empty() {
+        let _ = writeln!(o, "\nAcross terrains (the paper: {}):\n", paper::OVERLAP);
+        for ((_, d), n) in several {
+            let _ = writeln!(o, "- {}:", d.robot);
+            for item in across_terrains(d, n) {
+                let _ = writeln!(o, "  - {item}");
+            }
+        }
+    }
+    o
+}
+
+/// Each terrain's points near the best, read once for its column and for the overlap.
+fn near_of(d: &ReportData) -> Vec<Option<NearBest>> {
+    (0..d.terrains.len()).map(|t| d.near_best(t)).collect()
+}
+
+/// One [`Column`] a terrain, in the sweep's terrain order.
+fn columns_of(d: &ReportData, near: &[Option<NearBest>]) -> Vec<Column> {
+    near.iter()
+        .enumerate()
+        .map(|(t, n)| column(d, t, n.as_ref()))
+        .collect()
+}
+
+/// The table of findings: the paper's column, then one a `(heading, column)`.
+fn table(o: &mut String, columns: &[(String, Column)]) {
     let mut header = "| | the paper (Kim et al. 2024) |".to_string();
     let mut rule = "|---|---|".to_string();
-    for t in &d.terrains {
-        let _ = write!(header, " {} |", cell_text(t));
+    for (heading, _) in columns {
+        let _ = write!(header, " {} |", cell_text(heading));
         rule.push_str("---|");
     }
     let _ = writeln!(o, "{header}\n{rule}");
-    // Each terrain's points near the best, read once for its column and for the overlap.
-    let near: Vec<Option<NearBest>> = (0..d.terrains.len()).map(|t| d.near_best(t)).collect();
-    let columns: Vec<Column> = near
-        .iter()
-        .enumerate()
-        .map(|(t, n)| column(d, t, n.as_ref()))
-        .collect();
     let standing = format!(
         "rows of w1 standing still at every w2 (mean speed < {} m/s; points never rewarded left out)",
         crate::shape::STANDING_SPEED
@@ -110,15 +193,16 @@ pub fn markdown(d: &ReportData) -> Option<String> {
     ];
     for (label, said, value) in rows {
         let _ = write!(o, "| {} | {} |", cell_text(label), cell_text(said));
-        for c in &columns {
+        for (_, c) in columns {
             let _ = write!(o, " {} |", cell_text(value(c)));
         }
         o.push('\n');
     }
-    if d.terrains.len() > 1 {
-        across_terrains(&mut o, d, &near);
-    }
-    Some(o)
+}
+
+/// A name on one line, with its double quotes made single (it is written in quotes).
+fn one_line(s: &str) -> String {
+    s.replace('"', "'").replace('\n', " ")
 }
 
 /// Reads one figure of a [`Column`].
@@ -299,22 +383,13 @@ fn gait_at(scored: &[&super::ReportCell], p: (usize, usize)) -> String {
 }
 
 /// The paper's overlap of the terrains' peaks, read three ways: with each terrain's spread
-/// of one run, by top quartile, and by the rule that picks the weights for every terrain.
-fn across_terrains(o: &mut String, d: &ReportData, near: &[Option<NearBest>]) {
-    let _ = writeln!(o, "\nAcross terrains (the paper: {}):\n", paper::OVERLAP);
+/// of one run, by top quartile, and by the rule that picks the weights for every terrain;
+/// one list item each.
+fn across_terrains(d: &ReportData, near: &[Option<NearBest>]) -> [String; 3] {
     let per_terrain: Option<Vec<NearBest>> = near.iter().cloned().collect();
     let near = per_terrain.map_or_else(
         || "not yet (a terrain has no spread of one run)".into(),
         |p| point_names(d, &crate::near_best::near_best_everywhere(&p)),
-    );
-    let _ = writeln!(
-        o,
-        "- points not told apart from the best on every terrain at once: {near}"
-    );
-    let _ = writeln!(
-        o,
-        "- points in the top quartile of every terrain: {}",
-        point_names(d, &d.overlap().0)
     );
     let rule = d.across().map_or_else(
         || "not yet (no point scored on every terrain with a positive best score)".into(),
@@ -328,11 +403,17 @@ fn across_terrains(o: &mut String, d: &ReportData, near: &[Option<NearBest>]) {
             )
         },
     );
-    let _ = writeln!(
-        o,
-        "- the weights for every terrain ({}): {rule}",
-        crate::across::RULE
-    );
+    [
+        format!("points not told apart from the best on every terrain at once: {near}"),
+        format!(
+            "points in the top quartile of every terrain: {}",
+            point_names(d, &d.overlap().0)
+        ),
+        format!(
+            "the weights for every terrain ({}): {rule}",
+            crate::across::RULE
+        ),
+    ]
 }
 
 /// Text safe inside a Markdown table cell.

@@ -11,7 +11,7 @@
 //!   (more than one terrain);
 //! - `curves_<terrain>.{png,svg}`: learning curves (mean reward per step and mean return);
 //! - `findings.md`: the paper's findings beside the sweep's, one column per terrain
-//!   (grid sweeps);
+//!   (grid sweeps; several robots' sweeps in one table: `coordinator findings`, [`study`]);
 //! - `gait.gif`: the promoted policy walking (`worker render`, run from the `worker` binary
 //!   next to this executable);
 //! - `index.html`: all of it with the table of cells, and per terrain the spread of one run
@@ -30,6 +30,7 @@ pub mod machines;
 mod paragraphs;
 mod plots;
 mod spread;
+pub mod study;
 pub mod tensorboard;
 mod text;
 

@@ -5,6 +5,7 @@
 mod pictures;
 mod spread;
 mod stored;
+mod study;
 
 use super::*;
 use crate::store::queries::AttemptCpu;

@@ -115,6 +115,42 @@ async fn a_sweep_stored_by_the_coordinator_is_reported() {
     );
     assert_png(&out.join("score_stairs.png"), 700, 500);
     assert_png(&out.join("overlap.png"), 700, 500);
+
+    // `coordinator findings`, the sweep named after a colon and by a recording's sweep.id.
+    std::fs::write(
+        dir.path().join(crate::report::study::SWEEP_ID_FILE),
+        sweep.id.0.to_string(),
+    )
+    .unwrap();
+    let md_file = dir.path().join("study/findings.md");
+    let data_dir = dir.path().display().to_string();
+    crate::report::study::run(crate::report::study::FindingsArgs {
+        sweeps: vec![format!("{data_dir}:{}", sweep.id.0), data_dir.clone()],
+        out: Some(md_file.clone()),
+    })
+    .await
+    .unwrap();
+    let md = std::fs::read_to_string(&md_file).unwrap();
+    assert!(
+        md.contains("| | the paper (Kim et al. 2024) | anymal flat | anymal stairs | anymal flat | anymal stairs |"),
+        "{md}"
+    );
+    assert_eq!(
+        md.matches(&format!("read from {data_dir} (state: running)"))
+            .count(),
+        2,
+        "{md}"
+    );
+    let missing = crate::report::study::run(crate::report::study::FindingsArgs {
+        sweeps: vec![format!("{data_dir}:999")],
+        out: None,
+    })
+    .await
+    .unwrap_err();
+    assert!(
+        matches!(missing, crate::Error::UnknownSweep(_)),
+        "{missing}"
+    );
 }
 
 impl ReportData {
