@@ -11,7 +11,7 @@ use gaitsweep_core::CellId;
 use crate::across::ScoredCell;
 
 /// The rule in words, for logs and docs.
-pub const RULE: &str = "the top points of each terrain by their single-seed score get more seeds; the finalist with the highest mean over its seeds is promoted";
+pub const RULE: &str = "the top points of each terrain by their single-seed score get more seeds, then the point best across terrains gets them on every terrain where it has not; the finalist with the highest mean over its seeds is promoted";
 
 fn point(c: &ScoredCell) -> Point {
     let (i, j) = c.place.pair();
@@ -32,6 +32,29 @@ pub fn pick(cells: &[ScoredCell], top: u32) -> Vec<Point> {
         out.extend(points.into_iter().take(top as usize).map(|p| p.0));
     }
     out
+}
+
+/// The finalists still to queue before a sweep over several terrains may end: the point
+/// best across the terrains ([`crate::across::best_across`]) on each terrain where it is not
+/// yet a finalist, so that the weights handed back for every terrain hold on as many seeds
+/// as each terrain's own best (and the rule's value gets an interval). Empty with fewer
+/// than two terrains, no such point, or one that is a finalist everywhere.
+///
+/// Each call adds the pick's missing terrains to `finalists`, so a sweep that calls it
+/// whenever its cells close queues at most every point once per terrain: if the new seeds
+/// move the pick to another point, that point is confirmed next.
+pub fn across_to_confirm(
+    cells: &[ScoredCell],
+    terrains: usize,
+    finalists: &BTreeSet<Point>,
+) -> Vec<Point> {
+    let Some(a) = crate::across::best_across(cells, terrains) else {
+        return vec![];
+    };
+    (0..terrains)
+        .map(|t| (t, a.w1_index as usize, a.w2_index as usize))
+        .filter(|p| !finalists.contains(p))
+        .collect()
 }
 
 /// A promoted finalist.
@@ -154,7 +177,73 @@ mod tests {
         assert_eq!(per[&0], best);
     }
 
+    #[test]
+    fn the_point_best_across_terrains_is_confirmed_where_it_is_no_finalist() {
+        // Terrain 0's top point is (0,0), terrain 1's (1,1); (0,1) is 90% of both bests.
+        let cells = [
+            cell(1, 0, 0, 0, 1.0),
+            cell(2, 0, 0, 1, 0.9),
+            cell(3, 0, 1, 1, 0.1),
+            cell(4, 1, 0, 0, 0.1),
+            cell(5, 1, 0, 1, 0.45),
+            cell(6, 1, 1, 1, 0.5),
+        ];
+        let picked: BTreeSet<Point> = pick(&cells, 1).into_iter().collect();
+        assert_eq!(picked, [(0, 0, 0), (1, 1, 1)].into());
+        assert_eq!(
+            across_to_confirm(&cells, 2, &picked),
+            vec![(0, 0, 1), (1, 0, 1)],
+            "a finalist on neither terrain: both"
+        );
+        let mut with_one: BTreeSet<Point> = picked.clone();
+        with_one.insert((0, 0, 1));
+        assert_eq!(across_to_confirm(&cells, 2, &with_one), vec![(1, 0, 1)]);
+        with_one.insert((1, 0, 1));
+        assert!(across_to_confirm(&cells, 2, &with_one).is_empty(), "done");
+        assert!(
+            across_to_confirm(&cells, 1, &picked).is_empty(),
+            "one terrain has nothing across it"
+        );
+    }
+
     proptest! {
+        /// Confirming the pick over and over (new seeds may move it) ends, with the last
+        /// pick a finalist on every terrain.
+        #[test]
+        fn confirming_the_pick_across_terrains_ends(
+            scores in proptest::collection::vec((0usize..2, 0u32..3, 0u32..3, 0.0f64..1.0), 1..30),
+            later in proptest::collection::vec(0.0f64..1.0, 60),
+        ) {
+            let mut cells: Vec<ScoredCell> = scores
+                .iter()
+                .enumerate()
+                .map(|(k, &(t, i, j, s))| cell(k as i64, t, i, j, s))
+                .collect();
+            let mut finalists: BTreeSet<Point> = pick(&cells, 1).into_iter().collect();
+            let mut rounds = 0;
+            loop {
+                let missing = across_to_confirm(&cells, 2, &finalists);
+                if missing.is_empty() {
+                    break;
+                }
+                rounds += 1;
+                prop_assert!(rounds <= 18, "at most every point once per terrain");
+                for p in missing {
+                    prop_assert!(finalists.insert(p), "never queued twice");
+                    // Two more seeds, with arbitrary scores.
+                    for _ in 0..2 {
+                        let k = cells.len();
+                        cells.push(cell(k as i64, p.0, p.1 as u32, p.2 as u32, later[k % later.len()]));
+                    }
+                }
+            }
+            if let Some(a) = crate::across::best_across(&cells, 2) {
+                for t in 0..2 {
+                    prop_assert!(finalists.contains(&(t, a.w1_index as usize, a.w2_index as usize)));
+                }
+            }
+        }
+
         #[test]
         fn winners_are_finalists_with_the_highest_mean(
             scores in proptest::collection::vec((0usize..2, 0u32..3, 0u32..3, -1.0f64..1.0), 1..40),

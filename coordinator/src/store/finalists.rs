@@ -1,6 +1,6 @@
 //! The store's side of a grid's finalist stage ([`crate::finalists`]): queueing more seeds
-//! of the best points when the single-seed pass closes, and promoting among them when
-//! they close.
+//! of the best points when the single-seed pass closes, then of the point best across
+//! terrains, and promoting among them when they close.
 
 use std::collections::BTreeSet;
 
@@ -29,14 +29,33 @@ async fn finalist_points(tx: &mut Tx, sweep: SweepId) -> Result<BTreeSet<Point>>
 }
 
 /// Called when no cell of a running sweep is open: queues the finalists' further seeds if
-/// the spec has a finalist stage that has not started. Returns how many cells it queued
-/// (0: the sweep may finish).
+/// the spec has a finalist stage that has not started, and after it, over several
+/// terrains, those of the point best across them where it is no finalist yet
+/// ([`finalists::across_to_confirm`]). Returns how many cells it queued (0: the sweep may
+/// finish).
 pub(super) async fn queue(tx: &mut Tx, sweep: SweepId, spec: &ResolvedSpec) -> Result<usize> {
     let Some(f) = spec.finalists else {
         return Ok(0);
     };
-    if !finalist_points(tx, sweep).await?.is_empty() {
-        return Ok(0);
+    let points = finalist_points(tx, sweep).await?;
+    if !points.is_empty() {
+        if spec.terrains.len() < 2 {
+            return Ok(0);
+        }
+        let missing = finalists::across_to_confirm(
+            &scored_cells(&mut **tx, sweep).await?,
+            spec.terrains.len(),
+            &points,
+        );
+        let cells = spec.finalist_cells(&missing);
+        if cells.is_empty() {
+            return Ok(0);
+        }
+        insert_cells(tx, sweep, &cells, spec.epochs).await?;
+        let (_, i, j) = missing[0];
+        tracing::info!(%sweep, w1 = spec.w1_values[i], w2 = spec.w2_values[j], terrains = missing.len(),
+            cells = cells.len(), "queued the further seeds of the point best across terrains");
+        return Ok(cells.len());
     }
     let picked = finalists::pick(&scored_cells(&mut **tx, sweep).await?, f.top);
     let cells = spec.finalist_cells(&picked);

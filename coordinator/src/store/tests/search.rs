@@ -138,9 +138,11 @@ pub(super) async fn finalists_get_more_seeds_and_the_best_mean_is_promoted() {
 }
 
 /// How both study specs run: a grid over two terrains with a finalist stage. Each terrain's
-/// finalists are its own top points; when the sweep ends the finalists are promoted per
-/// terrain and overall, and the point best across the terrains (`'*'`) is ranked by the
-/// means over every seed, the finalists' further seeds included.
+/// finalists are its own top points; then the point best across the terrains gets the
+/// further seeds on the terrain where it was no finalist; when the sweep ends the
+/// finalists are promoted per terrain and overall, and the point best across the terrains
+/// (`'*'`) is ranked by the means over every seed, the finalists' further seeds included,
+/// with its interval.
 pub(super) async fn finalists_on_two_terrains_feed_the_promotion_across_them() {
     let (_d, store, w) = setup().await;
     let mut s = spec(2, 2, vec![TerrainKind::Flat, TerrainKind::Rough]);
@@ -151,7 +153,8 @@ pub(super) async fn finalists_on_two_terrains_feed_the_promotion_across_them() {
         "the first pass is one seed per point and terrain"
     );
     // Flat: (0,0) 0.9 then 0.3, 0.3 (mean 0.5); (0,1) 0.8 then 0.7, 0.6 (mean 0.7).
-    // Rough: (1,0) 0.6 x 3 (mean 0.6); (0,0) 0.5 then 0.2, 0.2 (mean 0.3); (0,1) 0.4 once.
+    // Rough: (1,0) 0.6 x 3 (mean 0.6); (0,0) 0.5 then 0.2, 0.2 (mean 0.3); (0,1) 0.4, then
+    // as the point best across terrains 0.5 and 0.3 (mean 0.4).
     let value = |c: &CellRecord| {
         let (i, j) = c.place.pair();
         match (c.terrain_index, i, j, c.replicate) {
@@ -164,7 +167,9 @@ pub(super) async fn finalists_on_two_terrains_feed_the_promotion_across_them() {
             (0, 1, 1, _) => 0.2,
             (1, 0, 0, 0) => 0.5,
             (1, 0, 0, _) => 0.2,
-            (1, 0, 1, _) => 0.4,
+            (1, 0, 1, 0) => 0.4,
+            (1, 0, 1, 1) => 0.5,
+            (1, 0, 1, _) => 0.3,
             (1, 1, 0, _) => 0.6,
             _ => 0.1,
         }
@@ -188,10 +193,10 @@ pub(super) async fn finalists_on_two_terrains_feed_the_promotion_across_them() {
     further.dedup();
     assert_eq!(
         further,
-        vec![(0, 0, 0), (0, 0, 1), (1, 0, 0), (1, 1, 0)],
-        "each terrain's own top 2 points get more seeds"
+        vec![(0, 0, 0), (0, 0, 1), (1, 0, 0), (1, 0, 1), (1, 1, 0)],
+        "each terrain's own top 2 points get more seeds, and the point best across both, (0,1), on rough too"
     );
-    assert_eq!(cells.len(), 16);
+    assert_eq!(cells.len(), 18);
     let promoted = |terrain: &'static str| {
         let (store, cells) = (&store, &cells);
         async move {
@@ -221,6 +226,17 @@ pub(super) async fn finalists_on_two_terrains_feed_the_promotion_across_them() {
     assert_eq!(p, (0, 1), "the rule over the finalists' means");
     assert_eq!(t, 1, "the row names its cell on the weakest terrain");
     assert!((value - 0.4 / 0.6).abs() < 1e-9, "{value}");
+    let ci95: Option<f64> = sqlx::query_scalar(
+        "SELECT ci95 FROM promotions WHERE sweep_id = $1 AND terrain = '*' ORDER BY id DESC LIMIT 1",
+    )
+    .bind(sweep.id.0)
+    .fetch_one(store.reader())
+    .await
+    .unwrap();
+    assert!(
+        ci95.unwrap() > 0.0,
+        "3 seeds on its weakest terrain give the rule's value an interval"
+    );
 }
 
 pub(super) async fn successive_halving_continues_the_top_third_and_stops_the_rest() {
