@@ -74,7 +74,7 @@ pub fn markdown(d: &ReportData) -> Option<String> {
 /// terrain: the write-up of a study recorded as one sweep per robot. Each sweep comes with
 /// where it was read from, named in the text. Evolutionary searches are left to the caller
 /// to refuse (their candidates are not a grid).
-pub fn study_markdown(sweeps: &[(String, &ReportData)]) -> String {
+pub fn study_markdown(sweeps: &[(String, ReportData)]) -> String {
     let mut o = String::new();
     let _ = writeln!(
         o,

@@ -96,8 +96,7 @@ pub async fn run(a: FindingsArgs) -> Result<()> {
     for s in &sources {
         sweeps.push((s.data_dir.display().to_string(), load_source(s).await?));
     }
-    let named: Vec<(String, &ReportData)> = sweeps.iter().map(|(n, d)| (n.clone(), d)).collect();
-    let md = study_markdown(&named);
+    let md = study_markdown(&sweeps);
     match &a.out {
         Some(path) => {
             write(path, &md)?;

@@ -39,29 +39,36 @@ pub(super) async fn queue(tx: &mut Tx, sweep: SweepId, spec: &ResolvedSpec) -> R
     };
     let points = finalist_points(tx, sweep).await?;
     if !points.is_empty() {
-        if spec.terrains.len() < 2 {
-            return Ok(0);
-        }
-        let missing = finalists::across_to_confirm(
-            &scored_cells(&mut **tx, sweep).await?,
-            spec.terrains.len(),
-            &points,
-        );
-        let cells = spec.finalist_cells(&missing);
-        if cells.is_empty() {
-            return Ok(0);
-        }
-        insert_cells(tx, sweep, &cells, spec.epochs).await?;
-        let (_, i, j) = missing[0];
-        tracing::info!(%sweep, w1 = spec.w1_values[i], w2 = spec.w2_values[j], terrains = missing.len(),
-            cells = cells.len(), "queued the further seeds of the point best across terrains");
-        return Ok(cells.len());
+        return queue_across(tx, sweep, spec, &points).await;
     }
     let picked = finalists::pick(&scored_cells(&mut **tx, sweep).await?, f.top);
     let cells = spec.finalist_cells(&picked);
     insert_cells(tx, sweep, &cells, spec.epochs).await?;
     tracing::info!(%sweep, points = picked.len(), cells = cells.len(), seeds = f.seeds,
         "grid pass done: queued the finalists' further seeds");
+    Ok(cells.len())
+}
+
+/// After the finalists of a grid over several terrains: queues the seeds of the point best
+/// across them on the terrains where it is no finalist yet; returns how many cells.
+async fn queue_across(
+    tx: &mut Tx,
+    sweep: SweepId,
+    spec: &ResolvedSpec,
+    finalist_points: &BTreeSet<Point>,
+) -> Result<usize> {
+    let missing = finalists::across_to_confirm(
+        &scored_cells(&mut **tx, sweep).await?,
+        spec.terrains.len(),
+        finalist_points,
+    );
+    let cells = spec.finalist_cells(&missing);
+    let Some(&(_, i, j)) = missing.first().filter(|_| !cells.is_empty()) else {
+        return Ok(0);
+    };
+    insert_cells(tx, sweep, &cells, spec.epochs).await?;
+    tracing::info!(%sweep, w1 = spec.w1_values[i], w2 = spec.w2_values[j], terrains = missing.len(),
+        cells = cells.len(), "queued the further seeds of the point best across terrains");
     Ok(cells.len())
 }
 

@@ -35,8 +35,8 @@ fn a_study_puts_every_robots_terrains_side_by_side() {
         }
     }
     let md = study_markdown(&[
-        ("studies/recordings/anymal".into(), &anymal),
-        ("/tmp/heavy".into(), &heavy),
+        ("studies/recordings/anymal".into(), anymal.clone()),
+        ("/tmp/heavy".into(), heavy.clone()),
     ]);
     assert!(
         md.contains("from 2 sweeps, one column per robot and terrain"),
