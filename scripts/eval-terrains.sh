@@ -18,7 +18,8 @@ if [ $# -lt 2 ]; then
 fi
 out="$1"; shift
 source scripts/setup.sh > /dev/null
-cargo build --release -q -p gaitsweep-worker
+# The whole workspace, as the other scripts build it: one feature set, no rebuild between them.
+cargo build --release -q --workspace --bins
 mkdir -p "$out"
 terrains="${TERRAINS:-rough stairs slopes}"
 levels="${LEVELS:-0,1,2,3,4,5}"

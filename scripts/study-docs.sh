@@ -25,7 +25,8 @@ source scripts/setup.sh
 # The snapshot's copy is the database: one named in the environment must not take its place.
 unset GAITSWEEP_DATABASE
 export GAITSWEEP_ROBOTS="${GAITSWEEP_ROBOTS:-$PWD/robots}"
-cargo build --release -p gaitsweep-coordinator --bins
+# The whole workspace, as the other scripts build it: one feature set, no rebuild between them.
+cargo build --release --workspace --bins
 BIN="${CARGO_TARGET_DIR:-$PWD/target}/release"
 SWEEP="$(cat "$SNAP/sweep.id")"
 TMP="$(mktemp -d)"
