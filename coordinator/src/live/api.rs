@@ -89,13 +89,23 @@ impl EpochCounts {
     }
 }
 
-/// Cells a running sweep's finalist stage will still queue: until its first pass ends, its
-/// finalists are not cells yet, so the count of cells and the epochs to go leave them out.
-fn finalists_to_come(running: bool, cells_total: u32, spec: &gaitsweep_core::ResolvedSpec) -> u32 {
-    if running && cells_total as usize == spec.cell_count() {
+/// Cells a running sweep's finalist stage will still queue, which the count of cells and
+/// the epochs to go would otherwise leave out: during the first pass, the finalists' seeds
+/// (known from the spec); after it, `confirmation`, the seeds that confirming the point
+/// best across terrains would queue as the scores stand
+/// ([`crate::store::confirmation_to_come`]).
+fn finalists_to_come(
+    running: bool,
+    cells_total: u32,
+    spec: &gaitsweep_core::ResolvedSpec,
+    confirmation: usize,
+) -> u32 {
+    if !running || spec.finalists.is_none() {
+        0
+    } else if cells_total as usize == spec.cell_count() {
         spec.finalist_cell_count() as u32
     } else {
-        0
+        confirmation as u32
     }
 }
 
@@ -118,8 +128,15 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
     .collect();
     let now = now_ms();
     let mut speeds = BTreeMap::new();
+    let mut confirmations = BTreeMap::new();
     for s in &records {
         if s.state == gaitsweep_core::SweepState::Running {
+            if s.cells_total as usize > s.spec.cell_count() {
+                confirmations.insert(
+                    s.id.0,
+                    crate::store::confirmation_to_come(&live.db, s.id, &s.spec).await?,
+                );
+            }
             speeds.insert(
                 s.id.0,
                 super::rate::epochs_per_second(
@@ -135,7 +152,9 @@ pub(crate) async fn sweeps(State(live): State<Live>) -> ApiResult<Json<Value>> {
             let c = counts.get(&s.id.0).copied().unwrap_or_default();
             let epochs_done = c.done;
             let running = s.state == gaitsweep_core::SweepState::Running;
-            let finalists_to_come = finalists_to_come(running, s.cells_total, &s.spec);
+            let confirmation = confirmations.get(&s.id.0).copied().unwrap_or(0);
+            let finalists_to_come =
+                finalists_to_come(running, s.cells_total, &s.spec, confirmation);
             let epochs_total = c.total(s.spec.epochs, s.cells_total, s.spec.budget_epochs())
                 + i64::from(finalists_to_come) * i64::from(s.spec.epochs);
             let rate = speeds.get(&s.id.0).copied().flatten();
@@ -580,19 +599,22 @@ mod tests {
         .unwrap();
         let spec = crate::presets::resolve(&spec).unwrap();
         // 2 terrains x the top 4 points x 2 more seeds, while the 56 first-pass cells run.
-        assert_eq!(finalists_to_come(true, 56, &spec), 16);
+        assert_eq!(finalists_to_come(true, 56, &spec, 0), 16);
         assert_eq!(
-            finalists_to_come(true, 72, &spec),
+            finalists_to_come(true, 72, &spec, 0),
             0,
             "queued: they are cells"
         );
+        // After the first pass only the confirmation of the pick across terrains can come.
+        assert_eq!(finalists_to_come(true, 72, &spec, 2), 2);
         assert_eq!(
-            finalists_to_come(false, 56, &spec),
+            finalists_to_come(false, 56, &spec, 0),
             0,
             "a stopped sweep queues none"
         );
+        assert_eq!(finalists_to_come(false, 72, &spec, 2), 0);
         let mut plain = spec.clone();
         plain.finalists = None;
-        assert_eq!(finalists_to_come(true, 56, &plain), 0);
+        assert_eq!(finalists_to_come(true, 56, &plain, 0), 0);
     }
 }

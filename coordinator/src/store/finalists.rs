@@ -6,6 +6,7 @@ use std::collections::BTreeSet;
 
 use gaitsweep_core::finalists::Point;
 use gaitsweep_core::{ResolvedSpec, SweepId};
+use sqlx::{Any, Executor};
 
 use super::queries::scored_cells;
 use super::search::insert_cells;
@@ -14,18 +15,46 @@ use crate::finalists;
 use crate::Result;
 
 /// The points that have cells past the first pass (replicate > 0): the finalists.
-async fn finalist_points(tx: &mut Tx, sweep: SweepId) -> Result<BTreeSet<Point>> {
+async fn finalist_points<'e>(
+    db: impl Executor<'e, Database = Any>,
+    sweep: SweepId,
+) -> Result<BTreeSet<Point>> {
     let rows: Vec<(i64, i64, i64)> = sqlx::query_as(
         "SELECT DISTINCT terrain_index, w1_index, w2_index FROM cells \
          WHERE sweep_id = $1 AND replicate > 0 AND w1_index IS NOT NULL",
     )
     .bind(sweep.0)
-    .fetch_all(&mut **tx)
+    .fetch_all(db)
     .await?;
     Ok(rows
         .into_iter()
         .map(|(t, i, j)| (t as usize, i as usize, j as usize))
         .collect())
+}
+
+/// The cells that confirming the point best across terrains would queue if the scores
+/// stood as they are now ([`finalists::across_to_confirm`]): a forecast for the live page,
+/// since the seeds still training may move the pick. 0 before the finalist stage has
+/// begun (its own cells are counted from the spec) and once the pick is a finalist on
+/// every terrain.
+pub async fn confirmation_to_come(
+    db: &sqlx::AnyPool,
+    sweep: SweepId,
+    spec: &ResolvedSpec,
+) -> Result<usize> {
+    if spec.finalists.is_none() || spec.terrains.len() < 2 {
+        return Ok(0);
+    }
+    let points = finalist_points(db, sweep).await?;
+    if points.is_empty() {
+        return Ok(0);
+    }
+    let missing = finalists::across_to_confirm(
+        &scored_cells(db, sweep).await?,
+        spec.terrains.len(),
+        &points,
+    );
+    Ok(spec.finalist_cells(&missing).len())
 }
 
 /// Called when no cell of a running sweep is open: queues the finalists' further seeds if
@@ -37,7 +66,7 @@ pub(super) async fn queue(tx: &mut Tx, sweep: SweepId, spec: &ResolvedSpec) -> R
     let Some(f) = spec.finalists else {
         return Ok(0);
     };
-    let points = finalist_points(tx, sweep).await?;
+    let points = finalist_points(&mut **tx, sweep).await?;
     if !points.is_empty() {
         return queue_across(tx, sweep, spec, &points).await;
     }
@@ -85,7 +114,7 @@ pub(super) async fn promote(
     if spec.finalists.is_none() {
         return Ok(());
     }
-    let points = finalist_points(tx, sweep).await?;
+    let points = finalist_points(&mut **tx, sweep).await?;
     let (overall, per_terrain) =
         finalists::winners(&scored_cells(&mut **tx, sweep).await?, &points);
     let mut rows: Vec<(String, finalists::Winner)> = per_terrain

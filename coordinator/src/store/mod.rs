@@ -26,6 +26,7 @@ use std::collections::BTreeMap;
 use std::future::Future;
 
 pub use backend::{Backend, DatabaseUrl};
+pub use finalists::confirmation_to_come;
 pub use progress_writer::WriteSnapshot;
 pub use reader::DB_FILE;
 pub use sql::SqlStore;

@@ -175,7 +175,15 @@ pub(super) async fn finalists_on_two_terrains_feed_the_promotion_across_them() {
         }
     };
     let mut finished = None;
+    // (cells so far, the live page's forecast of the confirmation's cells) before each score.
+    let mut forecasts = Vec::new();
     while let Some(g) = store.lease_next(&w, 0, 1).await.unwrap() {
+        forecasts.push((
+            store.cells(sweep.id).await.unwrap().len(),
+            crate::store::confirmation_to_come(store.reader(), sweep.id, &s)
+                .await
+                .unwrap(),
+        ));
         let out = store
             .report_result(g.lease, &score(value(&g.cell)), 3, None, 1)
             .await
@@ -183,6 +191,18 @@ pub(super) async fn finalists_on_two_terrains_feed_the_promotion_across_them() {
         finished = finished.or(out.finished);
     }
     assert_eq!(finished.unwrap().state, SweepState::Done);
+    assert!(
+        forecasts.iter().all(|&(n, f)| n != 8 || f == 0),
+        "the first pass forecasts no confirmation: {forecasts:?}"
+    );
+    assert!(
+        forecasts.contains(&(16, 2)),
+        "once (0,0)'s rough seeds fall, (0,1) is the pick and 2 rough seeds are forecast: {forecasts:?}"
+    );
+    assert!(
+        forecasts.iter().all(|&(n, f)| n != 18 || f == 0),
+        "queued: the forecast is spent: {forecasts:?}"
+    );
     let cells = store.cells(sweep.id).await.unwrap();
     let mut further: Vec<(u32, u32, u32)> = cells
         .iter()
