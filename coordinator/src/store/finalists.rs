@@ -5,8 +5,8 @@
 use std::collections::BTreeSet;
 
 use gaitsweep_core::finalists::Point;
-use gaitsweep_core::{ResolvedSpec, SweepId};
-use sqlx::{Any, Executor};
+use gaitsweep_core::{CellPlan, ResolvedSpec, SweepId};
+use sqlx::{Any, AnyConnection, Executor};
 
 use super::queries::scored_cells;
 use super::search::insert_cells;
@@ -45,16 +45,30 @@ pub async fn confirmation_to_come(
     if spec.finalists.is_none() || spec.terrains.len() < 2 {
         return Ok(0);
     }
-    let points = finalist_points(db, sweep).await?;
+    let mut conn = db.acquire().await?;
+    let points = finalist_points(&mut *conn, sweep).await?;
     if points.is_empty() {
         return Ok(0);
     }
+    Ok(confirmation(&mut conn, sweep, spec, &points).await?.1.len())
+}
+
+/// The point best across terrains on each terrain where it is no finalist yet
+/// ([`finalists::across_to_confirm`]), and the cells that would confirm it there: what
+/// [`queue_across`] queues and [`confirmation_to_come`] forecasts.
+async fn confirmation(
+    conn: &mut AnyConnection,
+    sweep: SweepId,
+    spec: &ResolvedSpec,
+    finalist_points: &BTreeSet<Point>,
+) -> Result<(Vec<Point>, Vec<CellPlan>)> {
     let missing = finalists::across_to_confirm(
-        &scored_cells(db, sweep).await?,
+        &scored_cells(&mut *conn, sweep).await?,
         spec.terrains.len(),
-        &points,
+        finalist_points,
     );
-    Ok(spec.finalist_cells(&missing).len())
+    let cells = spec.finalist_cells(&missing);
+    Ok((missing, cells))
 }
 
 /// Called when no cell of a running sweep is open: queues the finalists' further seeds if
@@ -86,12 +100,7 @@ async fn queue_across(
     spec: &ResolvedSpec,
     finalist_points: &BTreeSet<Point>,
 ) -> Result<usize> {
-    let missing = finalists::across_to_confirm(
-        &scored_cells(&mut **tx, sweep).await?,
-        spec.terrains.len(),
-        finalist_points,
-    );
-    let cells = spec.finalist_cells(&missing);
+    let (missing, cells) = confirmation(&mut **tx, sweep, spec, finalist_points).await?;
     let Some(&(_, i, j)) = missing.first().filter(|_| !cells.is_empty()) else {
         return Ok(0);
     };
