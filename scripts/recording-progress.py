@@ -64,10 +64,15 @@ for sweep, name, spec_json, sweep_state in db.execute(
               f"{spec['stop_unrewarded']}), so its remaining epochs are counted in full here")
     if trained:
         per = wall / trained
-        workers = max(running, 1)
-        hours = left * per / workers / 3600
+        hours = left * per / 3600
+        # No cell running means no worker is connected: give one worker's time, not a guess.
+        pace = (f"about {hours / running:.1f} hours left with {running} worker(s)" if running
+                else f"about {hours:.1f} hours of one worker's time left (none running now)")
         print(f"  {per:.2f} s an epoch per worker (evaluations included, {trained:,} epochs of the "
-              f"last day's attempts): about {hours:.0f} hours left with {workers} worker(s)")
+              f"last day's attempts): {pace}")
+    if fin and len(spec["terrains"]) > 1:
+        print("  not counted above: after the finalists, the seeds of the point best across "
+              "terrains on each terrain where it is no finalist (the live page forecasts them)")
     for cid, terrain, w1, w2, rep, state, done in db.execute(
             "SELECT id, terrain, w1, w2, replicate, state, epochs_done FROM cells "
             "WHERE sweep_id = ? AND state != 'done' AND epochs_done > 0 ORDER BY id", (sweep,)):

@@ -5,10 +5,10 @@
 use std::collections::BTreeSet;
 
 use gaitsweep_core::finalists::Point;
-use gaitsweep_core::{CellPlan, ResolvedSpec, SweepId};
+use gaitsweep_core::{CellId, CellPlan, ResolvedSpec, SweepId};
 use sqlx::{Any, AnyConnection, Executor};
 
-use super::queries::scored_cells;
+use super::queries::{never_rewarded, scored_cells};
 use super::search::insert_cells;
 use super::sql::Tx;
 use crate::finalists;
@@ -84,7 +84,18 @@ pub(super) async fn queue(tx: &mut Tx, sweep: SweepId, spec: &ResolvedSpec) -> R
     if !points.is_empty() {
         return queue_across(tx, sweep, spec, &points).await;
     }
-    let picked = finalists::pick(&scored_cells(&mut **tx, sweep).await?, f.top);
+    // A point whose weights taught nothing (no reward at any epoch) scores a policy that
+    // learned nothing: more seeds of it would say nothing of its weights.
+    let unrewarded: BTreeSet<CellId> = never_rewarded(&mut **tx, sweep)
+        .await?
+        .into_iter()
+        .collect();
+    let rewarded: Vec<_> = scored_cells(&mut **tx, sweep)
+        .await?
+        .into_iter()
+        .filter(|c| !unrewarded.contains(&c.cell))
+        .collect();
+    let picked = finalists::pick(&rewarded, f.top);
     let cells = spec.finalist_cells(&picked);
     insert_cells(tx, sweep, &cells, spec.epochs).await?;
     tracing::info!(%sweep, points = picked.len(), cells = cells.len(), seeds = f.seeds,
@@ -100,7 +111,7 @@ async fn queue_across(
     spec: &ResolvedSpec,
     finalist_points: &BTreeSet<Point>,
 ) -> Result<usize> {
-    let (missing, cells) = confirmation(&mut **tx, sweep, spec, finalist_points).await?;
+    let (missing, cells) = confirmation(tx, sweep, spec, finalist_points).await?;
     let Some(&(_, i, j)) = missing.first().filter(|_| !cells.is_empty()) else {
         return Ok(0);
     };

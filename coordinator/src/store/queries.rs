@@ -110,6 +110,27 @@ pub(super) fn place_filter(place: Place) -> (&'static str, &'static str) {
     }
 }
 
+/// The sweep's done cells that were never rewarded: `mean_step_reward` logged, and 0 at
+/// every epoch (the report's [`crate::report::ReportCell::never_rewarded`]), in id order.
+pub(super) async fn never_rewarded<'e>(
+    db: impl Executor<'e, Database = Any>,
+    sweep: SweepId,
+) -> Result<Vec<CellId>> {
+    // A rewarded cell is answered by its first epochs' rows; only a cell never rewarded
+    // is read to its end, and those are few.
+    let ids: Vec<i64> = sqlx::query_scalar(
+        "SELECT c.id FROM cells c WHERE c.sweep_id = $1 AND c.state = 'done' \
+         AND EXISTS (SELECT 1 FROM epoch_metrics m WHERE m.cell_id = c.id AND m.name = 'mean_step_reward') \
+         AND NOT EXISTS (SELECT 1 FROM epoch_metrics m WHERE m.cell_id = c.id \
+             AND m.name = 'mean_step_reward' AND m.value <> 0) \
+         ORDER BY c.id",
+    )
+    .bind(sweep.0)
+    .fetch_all(db)
+    .await?;
+    Ok(ids.into_iter().map(CellId).collect())
+}
+
 /// Every scored cell of `sweep` with its final score, in id order: what promotion across
 /// terrains and the finalists rank.
 pub(super) async fn scored_cells<'e>(

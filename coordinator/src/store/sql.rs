@@ -208,19 +208,7 @@ impl Store for SqlStore {
     }
 
     async fn never_rewarded(&self, id: SweepId) -> Result<Vec<CellId>> {
-        // A rewarded cell is answered by its first epochs' rows; only a cell never rewarded
-        // is read to its end, and those are few.
-        let ids: Vec<i64> = sqlx::query_scalar(
-            "SELECT c.id FROM cells c WHERE c.sweep_id = $1 AND c.state = 'done' \
-             AND EXISTS (SELECT 1 FROM epoch_metrics m WHERE m.cell_id = c.id AND m.name = 'mean_step_reward') \
-             AND NOT EXISTS (SELECT 1 FROM epoch_metrics m WHERE m.cell_id = c.id \
-                 AND m.name = 'mean_step_reward' AND m.value <> 0) \
-             ORDER BY c.id",
-        )
-        .bind(id.0)
-        .fetch_all(&self.read)
-        .await?;
-        Ok(ids.into_iter().map(CellId).collect())
+        super::queries::never_rewarded(&self.read, id).await
     }
 
     async fn cells(&self, id: SweepId) -> Result<Vec<CellRecord>> {

@@ -189,6 +189,7 @@ conformance!(
     reports_outside_the_cell_are_refused_and_change_nothing,
     replicates_promote_a_point_by_their_mean_once_all_are_done,
     finalists_get_more_seeds_and_the_best_mean_is_promoted,
+    a_point_never_rewarded_is_no_finalist,
     finalists_on_two_terrains_feed_the_promotion_across_them,
     successive_halving_continues_the_top_third_and_stops_the_rest,
     a_cell_failing_for_good_closes_the_rung_it_never_reached,

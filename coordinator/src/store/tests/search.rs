@@ -137,6 +137,40 @@ pub(super) async fn finalists_get_more_seeds_and_the_best_mean_is_promoted() {
     assert_eq!(on_flat.cell.id, best.cell.id);
 }
 
+/// A point never rewarded (its reward clipped to 0 at every epoch) is no finalist, however
+/// its untrained policy scores: the finalists' seeds go to the best rewarded points.
+pub(super) async fn a_point_never_rewarded_is_no_finalist() {
+    let (_d, store, w) = setup().await;
+    let mut s = spec(3, 1, vec![TerrainKind::Flat]);
+    s.finalists = Some(gaitsweep_core::finalists::Finalists { top: 1, seeds: 2 });
+    let sweep = store.create_sweep(&s, 0).await.unwrap();
+    // w1 index 0: never rewarded, 0.9; 1: rewarded, 0.5; 2: rewarded, 0.4.
+    while let Some(g) = store.lease_next(&w, 0, 1).await.unwrap() {
+        let i = g.cell.place.pair().0;
+        let reward = if i == 0 { 0.0 } else { 0.2 };
+        let epochs: Vec<(u32, BTreeMap<String, f64>)> = (1..=3)
+            .map(|e| (e, [("mean_step_reward".to_string(), reward)].into()))
+            .collect();
+        store.record_progress(g.lease, &epochs).await.unwrap();
+        let value = [0.9, 0.5, 0.4][i as usize];
+        store
+            .report_result(g.lease, &score(value), 3, None, 1)
+            .await
+            .unwrap();
+    }
+    let seeds: Vec<u32> = store
+        .cells(sweep.id)
+        .await
+        .unwrap()
+        .iter()
+        .filter(|c| c.replicate > 0)
+        .map(|c| c.place.pair().0)
+        .collect();
+    assert_eq!(seeds, vec![1], "the finalist is the best rewarded point");
+    let best = store.promoted(sweep.id, None).await.unwrap();
+    assert_eq!(best.cell.place.pair().0, 1, "and it is promoted");
+}
+
 /// How both study specs run: a grid over two terrains with a finalist stage. Each terrain's
 /// finalists are its own top points; then the point best across the terrains gets the
 /// further seeds on the terrain where it was no finalist; when the sweep ends the
