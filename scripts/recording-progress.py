@@ -66,13 +66,16 @@ for sweep, name, spec_json, sweep_state in db.execute(
         per = wall / trained
         hours = left * per / 3600
         # No cell running means no worker is connected: give one worker's time, not a guess.
-        pace = (f"about {hours / running:.1f} hours left with {running} worker(s)" if running
+        pace = ("nothing left" if not left
+                else f"about {hours / running:.1f} hours left with {running} worker(s)" if running
                 else f"about {hours:.1f} hours of one worker's time left (none running now)")
         print(f"  {per:.2f} s an epoch per worker (evaluations included, {trained:,} epochs of the "
               f"last day's attempts): {pace}")
-    if fin and len(spec["terrains"]) > 1:
-        print("  not counted above: after the finalists, the seeds of the point best across "
-              "terrains on each terrain where it is no finalist (the live page forecasts them)")
+    if fin and len(spec["terrains"]) > 1 and sweep_state != "done":
+        # The confirmation is queued only once the finalists are scored; from then on its
+        # cells are queued cells and counted above.
+        print("  not counted above until queued: after the finalists, the seeds of the point best "
+              "across terrains on each terrain where it is no finalist (the live page forecasts them)")
     for cid, terrain, w1, w2, rep, state, done in db.execute(
             "SELECT id, terrain, w1, w2, replicate, state, epochs_done FROM cells "
             "WHERE sweep_id = ? AND state != 'done' AND epochs_done > 0 ORDER BY id", (sweep,)):
