@@ -65,10 +65,13 @@ for sweep, name, spec_json, sweep_state in db.execute(
     if trained:
         per = wall / trained
         hours = left * per / 3600
-        # No cell running means no worker is connected: give one worker's time, not a guess.
-        pace = ("nothing left" if not left
-                else f"about {hours / running:.1f} hours left with {running} worker(s)" if running
-                else f"about {hours:.1f} hours of one worker's time left (none running now)")
+        if not left:
+            pace = "nothing left"
+        elif running:
+            pace = f"about {hours / running:.1f} hours left with {running} worker(s)"
+        else:
+            # No cell running means no worker is connected: give one worker's time, not a guess.
+            pace = f"about {hours:.1f} hours of one worker's time left (none running now)"
         print(f"  {per:.2f} s an epoch per worker (evaluations included, {trained:,} epochs of the "
               f"last day's attempts): {pace}")
     if fin and len(spec["terrains"]) > 1 and sweep_state != "done":
